@@ -1,0 +1,60 @@
+//! The command-line shell: argument parsing and one thin `run` per command over the library.
+
+pub mod codec;
+pub mod eval;
+pub mod fit;
+pub mod mesh;
+pub mod preview;
+pub mod render;
+
+use clap::{Parser, Subcommand};
+
+/// nephele: ellipsoidal-blob approximation of meshes and target-shaped cloud animation.
+#[derive(Debug, Parser)]
+#[command(name = "nephele", version, about, long_about = None)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Fit a blob model to a mesh (OBJ, PLY, OFF, STL or builtin:NAME).
+    Fit(fit::Args),
+    /// Measure a model's error against a mesh (Metro method), bytes and data reduction.
+    Eval(eval::Args),
+    /// Polygonize a model's blob surface to OBJ or PLY.
+    Mesh(mesh::Args),
+    /// Render a shot from a scene file to EXR and/or PNG frames (resumable).
+    Render(render::Args),
+    /// Render a fast low-resolution turntable of a model or mesh (frames and a GIF).
+    Preview(preview::Args),
+    /// Encode a model to the compact binary codec.
+    Encode(codec::EncodeArgs),
+    /// Decode a binary model back to a RON model file.
+    Decode(codec::DecodeArgs),
+}
+
+/// Run the parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Fit(a) => fit::run(a),
+        Command::Eval(a) => eval::run(a),
+        Command::Mesh(a) => mesh::run(a),
+        Command::Render(a) => render::run(a),
+        Command::Preview(a) => preview::run(a),
+        Command::Encode(a) => codec::run_encode(a),
+        Command::Decode(a) => codec::run_decode(a),
+    }
+}
+
+/// Load a mesh and print its warnings on stderr.
+pub fn load_mesh(source: &str) -> anyhow::Result<nephele::mesh::LoadedMesh> {
+    let loaded = nephele::mesh::load(source)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded)
+}

@@ -1,0 +1,21 @@
+//! nephele: approximate a closed triangle mesh by a few hundred ellipsoidal blobs (Ellipsoidal-
+//! Blob Approximation of 3D Models and Its Applications), and render target-shaped cloud
+//! animations that gather or diffuse into it.
+//!
+//! The pipeline, one module a stage:
+//! [`mesh`] → [`decompose`] → [`blobby`] (field, fit, codec, polygonize) → [`animate`] →
+//! [`render`], with [`scene`] tying a shot together and [`pipeline`] running a fit.
+#![warn(missing_docs)]
+
+pub mod animate;
+pub mod atomic;
+pub mod blobby;
+pub mod decompose;
+pub mod eval;
+pub mod geometry;
+pub mod mesh;
+pub mod pipeline;
+pub mod progress;
+pub mod render;
+pub mod rng;
+pub mod scene;
