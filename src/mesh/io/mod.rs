@@ -8,6 +8,7 @@
 //! from a header's claimed count before checking it against the bytes that are actually there:
 //! every record has a minimum size, so a count that cannot fit in the file is refused up front.
 
+mod build;
 mod obj;
 mod off;
 mod ply;
@@ -18,11 +19,12 @@ mod write;
 
 use std::path::{Path, PathBuf};
 
-use glam::DVec3;
-
 use super::{Mesh, MeshError};
 
 pub use write::write_mesh;
+
+use build::clean_up;
+pub(crate) use build::MeshBuilder;
 
 /// The mesh file formats nephele reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -70,8 +72,11 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshError> {
 
 /// Parse a whole mesh file held in memory. `path` only names the source in errors.
 ///
-/// Returns an error for empty input and for a file that yields no triangle; otherwise the mesh
-/// has finite coordinates and in-range indices, but is not checked for area or orientation.
+/// Returns an error for empty input and for a file that yields no triangle. Otherwise the mesh
+/// is indexed and clean but not yet checked for area or orientation: finite coordinates,
+/// in-range indices, bit-identical positions welded into one vertex (so STL and seam-split
+/// files come out connected), no degenerate (repeated-index) triangle, no unreferenced vertex;
+/// the remaining vertices keep their file order.
 /// Never panics, whatever the bytes.
 pub fn parse_mesh_bytes(bytes: &[u8], format: MeshFormat, path: &Path) -> Result<Mesh, MeshError> {
     if bytes.iter().all(|b| b.is_ascii_whitespace()) {
@@ -83,13 +88,12 @@ pub fn parse_mesh_bytes(bytes: &[u8], format: MeshFormat, path: &Path) -> Result
         MeshFormat::Off => off::parse(bytes, path)?,
         MeshFormat::Stl => stl::parse(bytes, path)?,
     };
+    let vertices_in_file = mesh.positions.len();
+    let mesh = clean_up(mesh);
     if mesh.triangles.is_empty() {
         return Err(invalid(
             path,
-            format!(
-                "no usable triangle ({} vertices, 0 non-degenerate faces)",
-                mesh.positions.len()
-            ),
+            format!("no usable triangle ({vertices_in_file} vertices, 0 non-degenerate faces)"),
         ));
     }
     Ok(mesh)
@@ -112,65 +116,6 @@ pub(crate) fn invalid(path: &Path, message: String) -> MeshError {
     }
 }
 
-/// Accumulates vertices and polygons into a [`Mesh`]: fan triangulation, degenerate triangles
-/// (a repeated index) dropped. Index range checks are the caller's job.
-#[derive(Default)]
-pub(crate) struct MeshBuilder {
-    mesh: Mesh,
-}
-
-impl MeshBuilder {
-    /// An empty builder with room for `vertices` and `triangles` (callers pass counts already
-    /// checked against the file size).
-    pub(crate) fn with_capacity(vertices: usize, triangles: usize) -> MeshBuilder {
-        MeshBuilder {
-            mesh: Mesh {
-                positions: Vec::with_capacity(vertices),
-                triangles: Vec::with_capacity(triangles),
-            },
-        }
-    }
-
-    /// Number of vertices pushed so far.
-    pub(crate) fn vertex_count(&self) -> usize {
-        self.mesh.positions.len()
-    }
-
-    /// Add a vertex; `Err` with a message when a coordinate is NaN or infinite.
-    pub(crate) fn push_vertex(&mut self, p: [f64; 3]) -> Result<(), String> {
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(format!("non-finite vertex coordinate {p:?}"));
-        }
-        self.mesh.positions.push(DVec3::from_array(p));
-        Ok(())
-    }
-
-    /// Add a polygon of at least three vertex indices as a triangle fan around its first
-    /// vertex; `Err` with a message for fewer than three.
-    pub(crate) fn push_polygon(&mut self, poly: &[u32]) -> Result<(), String> {
-        if poly.len() < 3 {
-            return Err(format!(
-                "face has {} vertices; a face needs at least 3",
-                poly.len()
-            ));
-        }
-        let a = poly[0];
-        for w in poly[1..].windows(2) {
-            let (b, c) = (w[0], w[1]);
-            // Degenerate (repeated index): no area, no orientation; drop it.
-            if a != b && b != c && a != c {
-                self.mesh.triangles.push([a, b, c]);
-            }
-        }
-        Ok(())
-    }
-
-    /// The finished mesh.
-    pub(crate) fn finish(self) -> Mesh {
-        self.mesh
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -190,14 +135,5 @@ mod tests {
             Err(MeshError::UnknownFormat { .. })
         ));
         assert!(MeshFormat::from_path(Path::new("noext")).is_err());
-    }
-
-    #[test]
-    fn fan_triangulation_drops_degenerates() {
-        let mut b = MeshBuilder::default();
-        b.push_polygon(&[0, 1, 2, 3, 4]).unwrap();
-        b.push_polygon(&[5, 5, 6]).unwrap();
-        assert!(b.push_polygon(&[1, 2]).is_err());
-        assert_eq!(b.finish().triangles, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
     }
 }

@@ -38,8 +38,9 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     count(ne_tok, "edge count")?;
     t.skip_line();
 
-    // A vertex line holds at least "x y z" (6 bytes with separators), a face "3 a b c" (8).
-    let needed = nv as u64 * 6 + nf as u64 * 8;
+    // A vertex line holds at least "x y z" (6 bytes with separators), a face at least its
+    // count (2 bytes; a too-short face then gets its own located error).
+    let needed = nv as u64 * 6 + nf as u64 * 2;
     if needed > t.remaining() as u64 + 1 {
         return Err(invalid(
             path,

@@ -298,7 +298,7 @@ impl Reader<'_> {
                     let n = n as usize;
                     if !src.can_hold(n, item) {
                         return Err(format!(
-                            "list '{}' claims {n} items, more than the rest of the file holds",
+                            "list '{}' claims {n} items, more than the rest of the file holds (truncated or corrupt data)",
                             prop.name
                         ));
                     }

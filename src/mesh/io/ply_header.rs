@@ -253,23 +253,27 @@ fn parse_property<'a>(tokens: &mut impl Iterator<Item = &'a [u8]>) -> Result<Pro
     })
 }
 
-/// Refuse element counts whose minimal records cannot fit in `body_len` bytes.
+/// Refuse element counts whose minimal records cannot fit in `body_len` bytes; the error names
+/// the element that asks for the most bytes.
 fn check_counts(header: &Header, body_len: usize, path: &Path) -> Result<(), MeshError> {
-    let mut needed: u128 = 0;
-    for e in &header.elements {
-        let min = e.min_record_bytes(header.encoding) as u128;
-        needed += e.count as u128 * min;
-        // The last ASCII value needs no separator.
-        let available = body_len as u128 + u128::from(header.encoding == Encoding::Ascii);
-        if needed > available {
-            return Err(invalid(
-                path,
-                format!(
-                    "PLY header claims {} '{}' elements (at least {} bytes each), but only {} bytes follow the header: truncated file or bad count",
-                    e.count, e.name, min, body_len
-                ),
-            ));
-        }
+    let needs: Vec<(u128, &Element)> = header
+        .elements
+        .iter()
+        .map(|e| (e.count as u128 * e.min_record_bytes(header.encoding) as u128, e))
+        .collect();
+    let needed: u128 = needs.iter().map(|(n, _)| n).sum();
+    // The last ASCII value needs no separator.
+    let available = body_len as u128 + u128::from(header.encoding == Encoding::Ascii);
+    match needs.iter().max_by_key(|(n, _)| *n) {
+        Some((_, e)) if needed > available => Err(invalid(
+            path,
+            format!(
+                "PLY header claims {} '{}' elements (at least {} bytes each; {needed} bytes for all elements), but only {body_len} bytes follow the header: truncated file or bad count",
+                e.count,
+                e.name,
+                e.min_record_bytes(header.encoding),
+            ),
+        )),
+        _ => Ok(()),
     }
-    Ok(())
 }

@@ -1,13 +1,12 @@
 //! STL reader, binary and ASCII, detected from the content. STL stores each triangle with its
-//! own three corners; identical positions (bit-equal, with -0 and +0 merged) become one vertex
-//! so the mesh is indexed and closed meshes come out closed.
+//! own three corners; they are read as separate vertices and welded afterwards by
+//! [`super::parse_mesh_bytes`] (bit-identical positions become one vertex), so closed meshes
+//! come out closed.
 //!
 //! Binary: an 80-byte header, a u32 triangle count, then 50 bytes a triangle (normal, three
 //! corners as f32 little endian, a u16 attribute). ASCII: `solid`, then `facet normal ..`,
 //! `outer loop`, `vertex x y z` (three or more), `endloop`, `endfacet`, ..., `endsolid`.
 
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
 use std::path::Path;
 
 use super::text::{lines, parse_f64, show, split_ws};
@@ -48,58 +47,11 @@ fn is_ascii(bytes: &[u8]) -> bool {
         .is_some_and(|t| t == b"facet" || t == b"endsolid")
 }
 
-/// Merges bit-identical positions into one vertex index.
-struct Welder {
-    builder: MeshBuilder,
-    index: HashMap<[u32; 3], u32, BuildHasherDefault<KeyHasher>>,
-}
-
-impl Welder {
-    fn with_capacity(triangles: usize) -> Welder {
-        // A closed mesh has about half as many vertices as triangles.
-        Welder {
-            builder: MeshBuilder::with_capacity(triangles / 2 + 3, triangles),
-            index: HashMap::with_capacity_and_hasher(triangles / 2 + 3, Default::default()),
-        }
-    }
-
-    /// The vertex index of `p` (f32 coordinates), adding it when new.
-    fn vertex(&mut self, p: [f32; 3]) -> Result<u32, String> {
-        // +0.0 turns -0.0 into +0.0 so both weld.
-        let key = p.map(|c| (c + 0.0).to_bits());
-        if let Some(&i) = self.index.get(&key) {
-            return Ok(i);
-        }
-        let i = u32::try_from(self.builder.vertex_count()).map_err(|_| "too many vertices")?;
-        self.builder.push_vertex(p.map(f64::from))?;
-        self.index.insert(key, i);
-        Ok(i)
-    }
-}
-
-/// FxHash-style multiplicative hasher: the keys are float bit patterns from a file, not
-/// adversarial network input, and SipHash would dominate the load time.
-#[derive(Default)]
-struct KeyHasher(u64);
-
-impl Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    fn write_u32(&mut self, v: u32) {
-        self.write_u64(v as u64);
-    }
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    }
-    fn write_usize(&mut self, v: usize) {
-        self.write_u64(v as u64);
-    }
+/// Add corner `p` (f32 coordinates) as a new vertex; [`super::clean_up`] welds duplicates.
+fn corner(builder: &mut MeshBuilder, p: [f32; 3]) -> Result<u32, String> {
+    let i = u32::try_from(builder.vertex_count()).map_err(|_| "more than 2^32-1 corners")?;
+    builder.push_vertex(p.map(f64::from))?;
+    Ok(i)
 }
 
 fn parse_binary(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
@@ -124,27 +76,26 @@ fn parse_binary(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
             ),
         ));
     }
-    let mut welder = Welder::with_capacity(n);
+    // `n` was just checked against the file length: at most (len - 84) / 50 triangles.
+    let mut builder = MeshBuilder::with_capacity(3 * n, n);
     for (t, rec) in bytes[HEADER_BYTES..].chunks_exact(RECORD_BYTES).enumerate() {
         let f = |o: usize| f32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]);
         let mut tri = [0u32; 3];
         for (k, v) in tri.iter_mut().enumerate() {
             let o = 12 + 12 * k;
-            *v = welder
-                .vertex([f(o), f(o + 4), f(o + 8)])
+            *v = corner(&mut builder, [f(o), f(o + 4), f(o + 8)])
                 .map_err(|m| parse_error(path, t + 1, format!("binary triangle {}: {m}", t + 1)))?;
         }
-        welder
-            .builder
+        builder
             .push_polygon(&tri)
             .map_err(|m| parse_error(path, t + 1, m))?;
     }
-    Ok(welder.builder.finish())
+    Ok(builder.finish())
 }
 
 fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
-    // A facet takes well over 50 bytes of text: a cheap upper bound for reserving.
-    let mut welder = Welder::with_capacity(bytes.len() / 64);
+    // A facet takes well over 100 bytes of text: a cheap upper bound for reserving.
+    let mut builder = MeshBuilder::with_capacity(bytes.len() / 32, bytes.len() / 100);
     let mut poly: Vec<u32> = Vec::new();
     let mut in_facet = false;
     let mut facet_line = 0;
@@ -171,15 +122,14 @@ fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
                     // Parsed as f64 then narrowed, so welding matches binary STL's f32 precision.
                     *c = parse_f64(t).map_err(err)? as f32;
                 }
-                poly.push(welder.vertex(p).map_err(err)?);
+                poly.push(corner(&mut builder, p).map_err(err)?);
             }
             Some(b"endfacet") => {
                 if !in_facet {
                     return Err(err("'endfacet' without 'facet'".into()));
                 }
                 in_facet = false;
-                welder
-                    .builder
+                builder
                     .push_polygon(&poly)
                     .map_err(|m| parse_error(path, facet_line, m))?;
             }
@@ -191,7 +141,7 @@ fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     if in_facet {
         return Err(parse_error(path, facet_line, "facet is never closed ('endfacet' missing)"));
     }
-    Ok(welder.builder.finish())
+    Ok(builder.finish())
 }
 
 #[cfg(test)]
@@ -218,7 +168,7 @@ mod tests {
             [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-0.0, 0.0, 1.0]],
         ];
-        let m = parse(&binary(&tris, 2), Path::new("t.stl")).unwrap();
+        let m = super::super::clean_up(parse(&binary(&tris, 2), Path::new("t.stl")).unwrap());
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [1, 2, 3]]);
         let e = parse(&binary(&tris, 3), Path::new("t.stl")).unwrap_err().to_string();
