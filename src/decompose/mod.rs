@@ -75,13 +75,16 @@ pub struct DecomposeConfig {
     pub primitive: Primitive,
     /// Voxel cells along the bounding box's longest side; default 110.
     pub voxels: usize,
-    /// Curvature weighting `λ` in `w = 1 + λ·|H|·D` (clamped); default 1.0.
+    /// Curvature weighting `λ` in `w = 1 + λ·|H|·D` (clamped); default 0.05 (`|H|·D` is ≥ 3.5
+    /// for any closed surface and ~12 on a typical model, so `λ = 1` would saturate every
+    /// weight at the clamp).
     pub curvature_weight: f64,
     /// Upper clamp of the weight `w`; default 4.0.
     pub max_weight: f64,
     /// Stop selecting when this many are selected.
     pub max_selected: usize,
-    /// Stop when the best gain falls below this fraction of the covered volume; default 1e-4.
+    /// Stop when the best gain falls below this fraction of the covered (weighted) volume;
+    /// default 1e-5 (a few voxels of a 110-voxel model).
     pub min_gain_fraction: f64,
 }
 
@@ -93,10 +96,10 @@ impl Default for DecomposeConfig {
             epsilon: 0.002,
             primitive: Primitive::Ellipsoid,
             voxels: 110,
-            curvature_weight: 1.0,
+            curvature_weight: 0.05,
             max_weight: 4.0,
             max_selected: 300,
-            min_gain_fraction: 1e-4,
+            min_gain_fraction: 1e-5,
         }
     }
 }
