@@ -252,3 +252,66 @@ fn three_hundred_blobs_at_resolution_200() {
     );
     assert_closed_oriented(&mesh, "300 blobs");
 }
+
+/// A fresh scratch directory under the system temp dir.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("nephele-polygonize-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn model_of(blobs: Vec<Blob>) -> nephele::blobby::BlobModel {
+    let field = BlobField::new(&blobs, 1.0);
+    nephele::blobby::BlobModel {
+        version: nephele::blobby::model_file::MODEL_VERSION,
+        primitive: nephele::decompose::Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: nephele::blobby::SourceInfo {
+            mesh: "test".into(),
+            bounds: field.bounds(),
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    }
+}
+
+#[test]
+fn cli_mesh_writes_a_closed_obj_and_ply() {
+    let dir = scratch("cli");
+    let model_path = dir.join("model.ron");
+    nephele::blobby::save_model(&model_path, &model_of(many_blobs(40))).unwrap();
+    for ext in ["obj", "ply"] {
+        let out = dir.join(format!("surface.{ext}"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+            .args(["mesh", model_path.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .args(["--resolution", "48"])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&status.stdout);
+        assert!(status.status.success(), "{stdout} {}", String::from_utf8_lossy(&status.stderr));
+        assert!(stdout.contains("triangles"), "{stdout}");
+        let mesh = nephele::mesh::io::read_mesh(&out).unwrap();
+        assert_closed_oriented(&mesh, ext);
+        let direct = polygonize(&nephele::blobby::load_model(&model_path).unwrap().field(), 48);
+        assert_eq!(mesh.triangles.len(), direct.triangles.len(), "{ext}");
+    }
+    // Bad input: a missing model and a wrong extension fail with a message, no panic.
+    let missing = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["mesh", dir.join("nope.ron").to_str().unwrap(), "-o"])
+        .arg(dir.join("x.obj"))
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("nope.ron"));
+    let bad_ext = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["mesh", model_path.to_str().unwrap(), "-o"])
+        .arg(dir.join("x.stl"))
+        .output()
+        .unwrap();
+    assert!(!bad_ext.status.success());
+    assert!(String::from_utf8_lossy(&bad_ext.stderr).contains(".obj or .ply"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
