@@ -5,70 +5,8 @@ use glam::DVec3;
 use nephele::eval::{MetroConfig, compare, metro::area_samples};
 use nephele::mesh::Mesh;
 
-/// Icosphere of radius `r` about `c`, subdivided `levels` times (vertices projected).
-fn icosphere(levels: usize, r: f64, c: DVec3) -> Mesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut p: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::with_capacity(f.len() * 4);
-        let mut midpoint = |a: u32, b: u32, p: &mut Vec<DVec3>| -> u32 {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                p.push(((p[a as usize] + p[b as usize]) * 0.5).normalize());
-                (p.len() - 1) as u32
-            })
-        };
-        for &[a, b, c] in &f {
-            let ab = midpoint(a, b, &mut p);
-            let bc = midpoint(b, c, &mut p);
-            let ca = midpoint(c, a, &mut p);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    Mesh {
-        positions: p.iter().map(|&v| c + v * r).collect(),
-        triangles: f,
-    }
-}
+mod eval_support;
+use eval_support::icosphere;
 
 fn scaled(m: &Mesh, k: f64, about: DVec3) -> Mesh {
     Mesh {
@@ -214,4 +152,88 @@ fn bunny_against_itself_and_a_scaled_copy() {
         r.mean_pct(),
         r.hausdorff_pct
     );
+}
+
+fn quick() -> nephele::eval::EvalConfig {
+    nephele::eval::EvalConfig {
+        resolution: 100,
+        metro: MetroConfig {
+            samples_per_face: 1,
+            ..small()
+        },
+        codec_error: true,
+    }
+}
+
+#[test]
+fn model_evaluation_against_a_fine_polygonization() {
+    // The "mesh" is the model's own surface polygonized finely; the evaluation polygonizes at
+    // a coarser resolution, so the error is small but not zero, and the codec's extra error is
+    // below 0.1 % of D.
+    let m = eval_support::model(40, false);
+    let mesh = nephele::blobby::polygonize::polygonize(&m.field(), 200);
+    let r = nephele::eval::evaluate_model(&mesh, &m, &quick());
+    let d = mesh.bounds().diagonal();
+    assert!((r.mesh.diagonal - d).abs() < 1e-12);
+    assert_eq!(r.mesh.bytes, 12 * (mesh.positions.len() + mesh.triangles.len()));
+    assert_eq!((r.model.blobs, r.model.live), (40, 40));
+    assert!(r.polygonization.faces > 1000);
+    // Cells are ~0.7 % of D at resolution 100 and the thinnest blobs ~1.5 % of D across.
+    assert!(r.error.hausdorff_pct < 1.5 && r.error.hausdorff_pct > 1e-4, "{:?}", r.error);
+    assert!(r.error.mean_pct() < 0.1, "{:?}", r.error);
+    let c = &r.codec;
+    assert!(c.quantized_bytes < c.lossless_bytes && c.lossless_bytes < 45 * 40 + 200);
+    assert!((c.reduction_quantized - r.mesh.bytes as f64 / c.quantized_bytes as f64).abs() < 1e-9);
+    let extra = c.quantized_extra.expect("measured");
+    eprintln!("{}", r.report());
+    assert!(extra.hausdorff_pct < 0.1, "{extra:?}");
+    assert!((extra.diagonal - d).abs() < 1e-12, "extra error is relative to the mesh's D");
+    let q = c.quantized_error.expect("measured");
+    assert!((q.hausdorff_pct - r.error.hausdorff_pct).abs() < 0.1);
+    let text = r.report();
+    assert!(text.contains("Hausdorff") && text.contains("quantized"), "{text}");
+    let names: Vec<&str> = r.timings.iter().map(|t| t.0.as_str()).collect();
+    assert_eq!(names[..3], ["polygonize", "metro", "encode"]);
+}
+
+#[test]
+fn cli_eval_prints_json_and_text() {
+    let exe = env!("CARGO_BIN_EXE_nephele");
+    let dir = std::env::temp_dir().join(format!("nephele-eval-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let m = eval_support::model(24, false);
+    let model_path = dir.join("m.ron");
+    nephele::blobby::save_model(&model_path, &m).unwrap();
+    let mesh_path = dir.join("m.obj");
+    let mesh = nephele::blobby::polygonize::polygonize(&m.field(), 120);
+    nephele::mesh::io::write_mesh(&mesh_path, &mesh).unwrap();
+    let run = |extra: &[&str]| {
+        let mut c = std::process::Command::new(exe);
+        c.arg("eval").arg(&mesh_path).arg(&model_path);
+        c.args(["--resolution", "60", "--min-samples", "20000"]);
+        c.args(extra).output().expect("runs")
+    };
+    let out = run(&["--json", "--timings"]);
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert_eq!(v["model"]["blobs"], 24);
+    assert_eq!(v["model"]["primitive"], "Ellipsoid");
+    assert!(v["error"]["hausdorff_pct"].as_f64().unwrap() < 3.0);
+    assert!(v["codec"]["quantized_extra"]["hausdorff_pct"].as_f64().unwrap() < 0.1);
+    assert!(v["timings"].as_array().unwrap().len() >= 5);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("total"));
+    let out = run(&["--no-codec-error"]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("mesh -> model") && text.contains("reduction"), "{text}");
+    // A missing model is a clear error naming the file.
+    let out = std::process::Command::new(exe)
+        .arg("eval")
+        .arg(&mesh_path)
+        .arg(dir.join("missing.ron"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.ron"));
+    std::fs::remove_dir_all(&dir).unwrap();
 }
