@@ -2,8 +2,9 @@
 //!
 //! Every struct rejects unknown fields, and every field but `target` has a default (listed in
 //! `scenes/README.md`). Parsing enables RON's `implicit_some` (write `frames: (1, 24)`, not
-//! `Some((1, 24))`) and `unwrap_variant_newtypes` (write `Auto(azimuth_deg: 30.0)` as well as
-//! `Auto((azimuth_deg: 30.0))`).
+//! `Some((1, 24))`). Variants holding a settings struct take it in its own parentheses:
+//! `Aggregation((keyframes: 8))`, `Auto((azimuth_deg: 30.0))`; `Fit(mesh: "…")` is a struct
+//! variant and takes its fields directly.
 
 use std::path::Path;
 
@@ -14,9 +15,9 @@ use super::SceneError;
 use crate::animate::Animation;
 use crate::render::{CloudMaterial, Sky, Sun};
 
-/// A scene file as written.
+/// A scene file as written (`Scene(...)`; the struct name may also be left out).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Scene")]
 pub struct SceneFile {
     /// What the cloud becomes (the only required field).
     pub target: Target,
@@ -241,8 +242,7 @@ impl Default for OutputSpec {
 /// Parse scene text (`path` labels errors). Syntax and type errors carry line and column.
 pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
     let options = ron::Options::default().with_default_extension(
-        ron::extensions::Extensions::IMPLICIT_SOME
-            | ron::extensions::Extensions::UNWRAP_VARIANT_NEWTYPES,
+        ron::extensions::Extensions::IMPLICIT_SOME,
     );
     options
         .from_str::<SceneFile>(text)
