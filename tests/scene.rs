@@ -129,6 +129,14 @@ fn full_scene_syntax_forms_parse() {
     };
     assert_eq!(c.azimuth_deg, 10.0);
     assert_eq!(c.fov_deg, 35.0);
+    // Unnamed outer struct and all-default newtypes.
+    let (_d, p) = scene_dir(
+        "unnamed",
+        "u.ron",
+        "(target: Model(\"model.ron\"), camera: Auto(()), animation: Aggregation(()))",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    assert_eq!(s.file.camera, CameraSpec::default());
 }
 
 /// The error's text starts with `file:line:column:`.
@@ -236,4 +244,25 @@ fn cli_rejects_malformed_scenes_with_nonzero_exit() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("frames"));
+}
+
+#[test]
+fn shipped_scenes_load() {
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"));
+    let shared = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/models"));
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "ron") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        if text.contains("shared/models") && !shared.exists() {
+            eprintln!("skipping {}: ../shared/models is absent", path.display());
+            continue;
+        }
+        scene::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        n += 1;
+    }
+    assert!(n >= 3, "at least the builtin scenes load");
 }
