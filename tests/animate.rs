@@ -128,7 +128,11 @@ fn aggregation_clusters_start_clear_of_their_place() {
     let plan = aggregation(&model, 11);
     let clusters = plan.clusters();
     // The paper's six planes: up to 24 regions; the shell fills most of them.
-    assert!(clusters.len() >= 16 && clusters.len() <= 24, "{}", clusters.len());
+    assert!(
+        clusters.len() >= 16 && clusters.len() <= 24,
+        "{}",
+        clusters.len()
+    );
     let mut seen = vec![false; model.blobs.len()];
     for c in clusters {
         for &i in &c.members {
@@ -169,7 +173,10 @@ fn aggregation_paths_are_continuous() {
         let bound = 1.5 * longest * (k - 1) as f64 / motion_frames + 1e-9;
         for f in 1..tl.frames {
             let jump = frames[f][i].center.distance(frames[f - 1][i].center);
-            assert!(jump <= bound, "blob {i} jumps {jump} > {bound} at frame {f}");
+            assert!(
+                jump <= bound,
+                "blob {i} jumps {jump} > {bound} at frame {f}"
+            );
         }
     }
     // Frame 0 is keyframe 0.

@@ -37,7 +37,10 @@ fn small_model() -> BlobModel {
     ];
     for i in 0..21 {
         let a = i as f64 / 21.0 * std::f64::consts::TAU;
-        blobs.push(ball(DVec3::new(0.9 * a.cos(), 0.3 * (3.0 * a).sin(), 0.9 * a.sin()), 0.25));
+        blobs.push(ball(
+            DVec3::new(0.9 * a.cos(), 0.3 * (3.0 * a).sin(), 0.9 * a.sin()),
+            0.25,
+        ));
     }
     BlobModel {
         version: MODEL_VERSION,
@@ -147,7 +150,10 @@ fn assert_located(e: &SceneError, line: usize, needle: &str) {
         unreachable!()
     };
     assert_eq!(*l, line, "{msg}");
-    assert!(msg.starts_with(&format!("{}:{line}:", path.display())), "{msg}");
+    assert!(
+        msg.starts_with(&format!("{}:{line}:", path.display())),
+        "{msg}"
+    );
     assert!(msg.contains(needle), "{msg} should mention {needle}");
 }
 
@@ -179,7 +185,10 @@ fn missing_target_file_names_scene_and_path() {
     let e = load_err("missing", "Scene(target: Model(\"nowhere/horse.ron\"))");
     let msg = e.to_string();
     assert!(matches!(e, SceneError::MissingTarget { .. }), "{msg}");
-    assert!(msg.contains("bad.ron") && msg.contains("nowhere/horse.ron"), "{msg}");
+    assert!(
+        msg.contains("bad.ron") && msg.contains("nowhere/horse.ron"),
+        "{msg}"
+    );
     let e = load_err("missingmesh", "Scene(target: Fit(mesh: \"gone.ply\"))");
     assert!(e.to_string().contains("gone.ply"), "{e}");
 }
@@ -193,9 +202,17 @@ fn out_of_range_values_name_the_field() {
         ("empty-range", "frames: (5, 2)", "frames"),
         ("past-end", "frames: (1, 500)", "frames"),
         ("nan", "exposure: NaN", "exposure"),
-        ("nan-sun", "sun: (direction: (0.0, NaN, 0.0))", "sun.direction"),
+        (
+            "nan-sun",
+            "sun: (direction: (0.0, NaN, 0.0))",
+            "sun.direction",
+        ),
         ("fov", "camera: Auto((fov_deg: 0.0))", "camera.fov_deg"),
-        ("speed", "animation: Aggregation((speed: (2.0, 1.0)))", "animation.speed"),
+        (
+            "speed",
+            "animation: Aggregation((speed: (2.0, 1.0)))",
+            "animation.speed",
+        ),
         ("formats", "output: (formats: [])", "output.formats"),
     ];
     for (name, field_text, field) in cases {
@@ -233,9 +250,16 @@ fn cli_rejects_malformed_scenes_with_nonzero_exit() {
     assert!(err.contains("bad.ron:3:"), "{err}");
     assert!(!dir.join("out").exists(), "nothing written for a bad scene");
     // A missing scene file and a bad --frames value fail too.
-    let out = nephele().args(["render", "no-such-scene.ron"]).output().unwrap();
+    let out = nephele()
+        .args(["render", "no-such-scene.ron"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
-    let (_d, ok) = scene_dir("cli-frames", "ok.ron", "Scene(target: Model(\"model.ron\"))");
+    let (_d, ok) = scene_dir(
+        "cli-frames",
+        "ok.ron",
+        "Scene(target: Model(\"model.ron\"))",
+    );
     let out = nephele()
         .arg("render")
         .arg(&ok)

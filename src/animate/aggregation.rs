@@ -239,7 +239,15 @@ impl AggregationPlan {
             for (i, blob) in key.iter_mut().enumerate() {
                 let c = &clusters[owner[i]];
                 let offset = c.direction * c.step * (k - 1 - j) as f64;
-                *blob = jittered(cfg, blob, c, offset, fade, seed, (j * target.len() + i) as u64);
+                *blob = jittered(
+                    cfg,
+                    blob,
+                    c,
+                    offset,
+                    fade,
+                    seed,
+                    (j * target.len() + i) as u64,
+                );
             }
             if cfg.repulsion > 0.0 && cfg.repulsion_steps > 0 {
                 let boxes: Vec<Aabb> = clusters
@@ -402,7 +410,12 @@ fn orient_cluster(
     ) * cfg.direction_jitter;
     c.direction = (base + noise).try_normalize().unwrap_or(base);
     // Jitter box: the centres' box, at least half a mean blob radius on each side.
-    let mean_r = c.members.iter().map(|&i| equivalent_radius(&blobs[i])).sum::<f64>() / n;
+    let mean_r = c
+        .members
+        .iter()
+        .map(|&i| equivalent_radius(&blobs[i]))
+        .sum::<f64>()
+        / n;
     let centers = Aabb::from_points(c.members.iter().map(|&i| &blobs[i].center));
     c.center_box = centers.expanded(0.5 * mean_r);
     // Everything the cluster can cover at any keyframe: jitter box plus the largest support
@@ -442,7 +455,9 @@ fn jittered(
     let shake = DVec3::new(u(), u(), u()) * c.center_box.size() * (cfg.jitter * fade);
     let center = (target.center + shake).clamp(c.center_box.min, c.center_box.max) + offset;
     let scale = 1.0 + cfg.size_jitter * fade * u();
-    let axis = DVec3::new(u(), u(), u()).try_normalize().unwrap_or(DVec3::Y);
+    let axis = DVec3::new(u(), u(), u())
+        .try_normalize()
+        .unwrap_or(DVec3::Y);
     let angle = cfg.rotation_jitter_deg.to_radians() * fade * u();
     Blob {
         center,

@@ -222,9 +222,12 @@ pub fn display_order(blobs: &[Blob], threshold: f64, n_ii: usize) -> Vec<usize> 
             .iter()
             .enumerate()
             .map(|(r, &i)| (r, signed_distance(&field, &visible, blobs[i].center, diag)))
-            .fold((0, f64::INFINITY), |best, cur| {
-                if cur.1 < best.1 { cur } else { best }
-            });
+            .fold(
+                (0, f64::INFINITY),
+                |best, cur| {
+                    if cur.1 < best.1 { cur } else { best }
+                },
+            );
         let i = remaining.remove(pick);
         order.push(i);
         visible.push(blobs[i]);

@@ -148,9 +148,12 @@ pub fn plan(
         Animation::Aggregation(c) => {
             Plan::Aggregation(AggregationPlan::new(c, &model.blobs, timeline, seed))
         }
-        Animation::Diffusion(c) => {
-            Plan::Diffusion(DiffusionPlan::new(c, &model.blobs, model.threshold, timeline))
-        }
+        Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
+            c,
+            &model.blobs,
+            model.threshold,
+            timeline,
+        )),
     })
 }
 

@@ -15,12 +15,21 @@ use crate::rng::mix64;
 /// Push apart blobs whose centres are closer than `factor · (r_i + r_j)` (`r` = equivalent
 /// radius), for `steps` steps; after each step blob `i`'s centre is clamped into
 /// `boxes[owner[i]]`. Blobs with equal centres are separated along a hashed direction.
-pub(crate) fn repel(blobs: &mut [Blob], owner: &[usize], boxes: &[Aabb], factor: f64, steps: usize) {
+pub(crate) fn repel(
+    blobs: &mut [Blob],
+    owner: &[usize],
+    boxes: &[Aabb],
+    factor: f64,
+    steps: usize,
+) {
     let n = blobs.len();
     if n < 2 {
         return;
     }
-    let radius: Vec<f64> = blobs.iter().map(|b| equivalent_radius(b) * factor).collect();
+    let radius: Vec<f64> = blobs
+        .iter()
+        .map(|b| equivalent_radius(b) * factor)
+        .collect();
     let r_max = radius.iter().copied().fold(0.0, f64::max);
     if r_max <= 0.0 {
         return;

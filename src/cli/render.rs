@@ -64,7 +64,9 @@ fn parse_frames(s: &str) -> Result<FrameArg, String> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = scene::load_scene(&args.scene)?;
     let total = scene.file.shot.frame_count();
-    let frames = args.frames.map(|f| (f.first.unwrap_or(1), f.last.unwrap_or(total)));
+    let frames = args
+        .frames
+        .map(|f| (f.first.unwrap_or(1), f.last.unwrap_or(total)));
     let opts = RenderOptions {
         frames,
         output: args.output,
@@ -78,10 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = scene::render_shot(&scene, &opts, &mut |f| {
         bar.inc(1);
         if !f.skipped {
-            bar.println(format!(
-                "frame {:>4}/{}: {:.2} s",
-                f.frame, f.of, f.seconds
-            ));
+            bar.println(format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds));
         }
     })
     .with_context(|| format!("rendering {}", args.scene.display()))?;

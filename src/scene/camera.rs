@@ -70,7 +70,11 @@ mod tests {
         // From +X, at radius / sin(fov/2).
         let r = 3f32.sqrt();
         let d = r / (17.5f32).to_radians().sin();
-        assert!((cam.position - Vec3::new(d, 1.0, 0.0)).length() < 1e-4, "{}", cam.position);
+        assert!(
+            (cam.position - Vec3::new(d, 1.0, 0.0)).length() < 1e-4,
+            "{}",
+            cam.position
+        );
         // A half orbit puts it on the other side.
         let spec = CameraSpec::Auto(AutoCamera {
             azimuth_deg: 90.0,

@@ -241,9 +241,8 @@ impl Default for OutputSpec {
 
 /// Parse scene text (`path` labels errors). Syntax and type errors carry line and column.
 pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
-    let options = ron::Options::default().with_default_extension(
-        ron::extensions::Extensions::IMPLICIT_SOME,
-    );
+    let options =
+        ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
     options
         .from_str::<SceneFile>(text)
         .map_err(|e| SceneError::Parse {
@@ -339,10 +338,20 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     let c = &s.cloud;
     finite(
         "cloud",
-        &[c.density, c.edge, c.albedo, c.phase_g, c.noise.amplitude, c.noise.frequency],
+        &[
+            c.density,
+            c.edge,
+            c.albedo,
+            c.phase_g,
+            c.noise.amplitude,
+            c.noise.frequency,
+        ],
     )?;
     if s.output.formats.is_empty() {
-        return Err(bad("output.formats", "list at least one format".to_string()));
+        return Err(bad(
+            "output.formats",
+            "list at least one format".to_string(),
+        ));
     }
     if let Target::Fit {
         blobs,

@@ -16,9 +16,7 @@ pub mod target;
 
 use std::path::{Path, PathBuf};
 
-pub use file::{
-    AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, Shot, Target,
-};
+pub use file::{AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, Shot, Target};
 pub use shot::{FrameReport, RenderOptions, ShotReport, render_shot};
 pub use target::load_target;
 

@@ -88,7 +88,10 @@ pub fn shot_setup(scene: &Scene, opts: &RenderOptions) -> Result<ShotSetup, Scen
             message: format!("need 1 ≤ first ≤ last ≤ {total} (the shot's frames), got {a}..{b}"),
         });
     }
-    let mut dir = opts.output.clone().unwrap_or_else(|| scene.output_dir.clone());
+    let mut dir = opts
+        .output
+        .clone()
+        .unwrap_or_else(|| scene.output_dir.clone());
     let (mut width, mut height) = (shot.width, shot.height);
     if opts.preview {
         dir = dir.join("preview");

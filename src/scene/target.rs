@@ -90,7 +90,10 @@ fn fnv1a(parts: &[&[u8]]) -> u64 {
     };
     for p in parts {
         p.iter().copied().for_each(&mut eat);
-        (p.len() as u64).to_le_bytes().into_iter().for_each(&mut eat);
+        (p.len() as u64)
+            .to_le_bytes()
+            .into_iter()
+            .for_each(&mut eat);
     }
     h
 }
