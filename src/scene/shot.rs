@@ -64,8 +64,11 @@ pub struct ShotReport {
 /// The resolved geometry of a shot: folder, frames, image size.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShotSetup {
-    /// Output folder.
+    /// Output folder of the frames.
     pub dir: PathBuf,
+    /// Folder of the target's fit cache: the output folder, also for previews (so a preview
+    /// and the final render share one fit).
+    pub cache_dir: PathBuf,
     /// 1-based inclusive frames to render.
     pub frames: RangeInclusive<u32>,
     /// Frames in the shot.
@@ -101,6 +104,7 @@ pub fn shot_setup(scene: &Scene, opts: &RenderOptions) -> Result<ShotSetup, Scen
     }
     Ok(ShotSetup {
         dir,
+        cache_dir,
         frames: a..=b,
         total,
         width,
@@ -214,7 +218,7 @@ pub fn render_shot(
         timings: Timings::default(),
     };
     if !todo.is_empty() {
-        let (model, origin) = timings.stage("target", || load_target(scene, &setup.dir))?;
+        let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
         report.target = Some(origin);
         let prep = timings.stage("plan", || prepare(scene, model))?;
         let (mut render_s, mut write_s) = (0.0, 0.0);
