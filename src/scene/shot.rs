@@ -91,10 +91,11 @@ pub fn shot_setup(scene: &Scene, opts: &RenderOptions) -> Result<ShotSetup, Scen
             message: format!("need 1 ≤ first ≤ last ≤ {total} (the shot's frames), got {a}..{b}"),
         });
     }
-    let mut dir = opts
+    let cache_dir = opts
         .output
         .clone()
         .unwrap_or_else(|| scene.output_dir.clone());
+    let mut dir = cache_dir.clone();
     let (mut width, mut height) = (shot.width, shot.height);
     if opts.preview {
         dir = dir.join("preview");
