@@ -291,3 +291,23 @@ fn bad_settings_are_errors() {
     let e = animate::plan(&anim, &model, timeline(), 1).unwrap_err();
     assert!(e.to_string().contains("animation.category_ii"), "{e}");
 }
+
+#[test]
+fn dead_blobs_stay_hidden_and_the_first_live_blob_starts() {
+    let mut model = shell_model(40);
+    for i in [0, 5, 6, 30] {
+        model.blobs[i].b = 0.0;
+    }
+    let plan = diffusion(&model);
+    assert_eq!(plan.order()[0], 1, "category I is the first live blob");
+    assert_eq!(plan.order().len(), 36);
+    assert_eq!(live_count(&plan.frame(0)), 1);
+    for k in 0..timeline().frames {
+        let f = plan.frame(k);
+        assert!([0, 5, 6, 30].iter().all(|&i| !f[i].is_live()));
+    }
+    let agg = aggregation(&model, 2);
+    assert!(agg.clusters().iter().all(|c| !c.members.contains(&0)));
+    assert_eq!(agg.frame(0)[5], model.blobs[5], "dead blobs do not move");
+    assert_eq!(agg.frame(timeline().frames - 1), model.blobs);
+}

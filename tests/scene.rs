@@ -343,7 +343,10 @@ fn seeded_frames_have_pinned_hashes() {
         let a = render_tiny(name, anim, 4);
         let b = render_tiny(name, anim, 4);
         assert_eq!((a.width, a.height), (64, 36));
-        assert!(a.alpha.iter().any(|&x| x > 0.05), "{name}: some cloud is visible");
+        assert!(
+            a.alpha.iter().any(|&x| x > 0.05),
+            "{name}: some cloud is visible"
+        );
         assert_eq!(frame_hash(&a), frame_hash(&b), "{name}: deterministic");
         assert_eq!(frame_hash(&a), pinned, "{name}: pinned hash");
     }
@@ -369,7 +372,12 @@ fn cli_resumes_and_force_rerenders() {
     let out = dir.join("out");
     let err = run_render(&path, &out, &["--frames", "1..2", "--dump-blobs"]);
     assert!(err.contains("2 frames rendered, 0 already done"), "{err}");
-    for f in ["tiny_0001.exr", "tiny_0001.png", "tiny_0002.png", "tiny_0002.blobs.ron"] {
+    for f in [
+        "tiny_0001.exr",
+        "tiny_0001.png",
+        "tiny_0002.png",
+        "tiny_0002.blobs.ron",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     assert!(!out.join("tiny_0003.png").exists());

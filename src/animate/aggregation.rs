@@ -26,7 +26,7 @@ use glam::{DQuat, DVec3};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
-use super::repulsion::repel;
+use super::repulsion::{NO_CLUSTER, repel};
 use super::{AnimateError, Timeline, blend_shape, blob_bounds, invalid};
 use crate::blobby::Blob;
 use crate::geometry::Aabb;
@@ -237,6 +237,9 @@ impl AggregationPlan {
         for (j, key) in keys.iter_mut().enumerate().take(k - 1) {
             let fade = (k - 1 - j) as f64 / (k - 1) as f64;
             for (i, blob) in key.iter_mut().enumerate() {
+                if owner[i] == NO_CLUSTER {
+                    continue;
+                }
                 let c = &clusters[owner[i]];
                 let offset = c.direction * c.step * (k - 1 - j) as f64;
                 *blob = jittered(
@@ -336,12 +339,13 @@ fn catmull_rom(p0: DVec3, p1: DVec3, p2: DVec3, p3: DVec3, t: f64) -> DVec3 {
         + (3.0 * p1 - p0 - 3.0 * p2 + p3) * t3)
 }
 
-/// Group blobs by the region (side of every plane) their centre lies in; regions in a fixed order.
+/// Group live blobs by the region (side of every plane) their centre lies in; regions in a
+/// fixed order. Dead blobs (`B = 0`) belong to no cluster and stay where they are.
 fn cluster_blobs(planes: &[Plane], bounds: &Aabb, blobs: &[Blob]) -> Vec<Cluster> {
     let centre = bounds.center();
     let size = bounds.size();
     let mut regions: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
-    for (i, b) in blobs.iter().enumerate() {
+    for (i, b) in blobs.iter().enumerate().filter(|(_, b)| b.is_live()) {
         let mut key = 0u64;
         for (p, plane) in planes.iter().enumerate().take(64) {
             let n = plane.normal.normalize();
@@ -363,9 +367,9 @@ fn cluster_blobs(planes: &[Plane], bounds: &Aabb, blobs: &[Blob]) -> Vec<Cluster
         .collect()
 }
 
-/// The cluster that owns each blob.
+/// The cluster that owns each blob ([`NO_CLUSTER`] for dead blobs).
 fn owners(clusters: &[Cluster], n: usize) -> Vec<usize> {
-    let mut owner = vec![0; n];
+    let mut owner = vec![NO_CLUSTER; n];
     for (ci, c) in clusters.iter().enumerate() {
         for &i in &c.members {
             owner[i] = ci;

@@ -1,8 +1,8 @@
 //! The diffusion scheme (paper §5.2.2): the target spreads out from one piece of cloud.
 //!
-//! - **Categories** (in the model's selection order): I = the first blob (the largest), II = the
-//!   next `category_ii` fraction of all blobs (rounded, at least one when there are ≥ 2 blobs),
-//!   III = the rest.
+//! - **Categories** (in the model's selection order, live blobs only): I = the first blob (the
+//!   largest), II = the next `category_ii` fraction of the live blobs (rounded, at least one
+//!   when there are ≥ 2), III = the rest. Dead blobs (`B = 0`) stay hidden throughout.
 //! - **Order.** Blob I is shown first. Then, repeatedly, the next blob of category II is the
 //!   remaining one whose centre has the smallest signed distance to the surface of the blobs
 //!   shown so far (negative inside). The distance is estimated as `−F/|∇F|` of the visible
@@ -96,7 +96,8 @@ impl DiffusionPlan {
         timeline: Timeline,
     ) -> DiffusionPlan {
         let n = target.len();
-        let n_ii = category_ii_count(n, cfg.category_ii);
+        let n_live = target.iter().filter(|b| b.is_live()).count();
+        let n_ii = category_ii_count(n_live, cfg.category_ii);
         let order = display_order(target, threshold, n_ii);
         // Start points: the nearest blob shown earlier (III: the nearest of I and II).
         let mut origin = vec![DVec3::ZERO; n];
@@ -143,7 +144,7 @@ impl DiffusionPlan {
         }
     }
 
-    /// The display order: blob indices, category I, then II, then III.
+    /// The display order of the live blobs: category I, then II, then III.
     pub fn order(&self) -> &[usize] {
         &self.order
     }
@@ -164,12 +165,12 @@ impl DiffusionPlan {
             return self.target.clone();
         }
         let t = self.timeline.time(k);
-        let first = self.order[0];
+        let first = self.order.first().copied();
         self.target
             .iter()
             .enumerate()
             .map(|(i, blob)| {
-                if i == first {
+                if Some(i) == first || !blob.is_live() {
                     return *blob;
                 }
                 let (s, g) = (self.start[i], self.grow[i]);
@@ -205,17 +206,18 @@ pub fn category_ii_count(n: usize, fraction: f64) -> usize {
     k.min(n - 1)
 }
 
-/// Display order: blob 0, then category II (`1..=n_ii`) greedily by signed distance to the
-/// visible surface, then category III in selection order.
+/// Display order of the live blobs: the first, then the next `n_ii` (category II) greedily by
+/// signed distance to the visible surface, then the rest (category III) in selection order.
 pub fn display_order(blobs: &[Blob], threshold: f64, n_ii: usize) -> Vec<usize> {
-    let n = blobs.len();
-    if n == 0 {
+    let live: Vec<usize> = (0..blobs.len()).filter(|&i| blobs[i].is_live()).collect();
+    let Some((&first, rest)) = live.split_first() else {
         return Vec::new();
-    }
+    };
+    let n_ii = n_ii.min(rest.len());
     let diag = blob_bounds(blobs).diagonal().max(f64::MIN_POSITIVE);
-    let mut order = vec![0];
-    let mut remaining: Vec<usize> = (1..=n_ii.min(n - 1)).collect();
-    let mut visible: Vec<Blob> = vec![blobs[0]];
+    let mut order = vec![first];
+    let mut remaining: Vec<usize> = rest[..n_ii].to_vec();
+    let mut visible: Vec<Blob> = vec![blobs[first]];
     while !remaining.is_empty() {
         let field = BlobField::new(&visible, threshold);
         let (pick, _) = remaining
@@ -232,7 +234,7 @@ pub fn display_order(blobs: &[Blob], threshold: f64, n_ii: usize) -> Vec<usize> 
         order.push(i);
         visible.push(blobs[i]);
     }
-    order.extend(n_ii.min(n - 1) + 1..n);
+    order.extend_from_slice(&rest[n_ii..]);
     order
 }
 

@@ -12,9 +12,13 @@ use crate::blobby::Blob;
 use crate::geometry::Aabb;
 use crate::rng::mix64;
 
+/// Blobs that belong to no cluster (dead blobs): they neither move nor push.
+pub(crate) const NO_CLUSTER: usize = usize::MAX;
+
 /// Push apart blobs whose centres are closer than `factor · (r_i + r_j)` (`r` = equivalent
 /// radius), for `steps` steps; after each step blob `i`'s centre is clamped into
-/// `boxes[owner[i]]`. Blobs with equal centres are separated along a hashed direction.
+/// `boxes[owner[i]]`. Blobs with `owner[i] == NO_CLUSTER` take no part. Blobs with equal
+/// centres are separated along a hashed direction.
 pub(crate) fn repel(
     blobs: &mut [Blob],
     owner: &[usize],
@@ -22,13 +26,17 @@ pub(crate) fn repel(
     factor: f64,
     steps: usize,
 ) {
-    let n = blobs.len();
+    // Compact arrays over the blobs that take part.
+    let active: Vec<usize> = (0..blobs.len())
+        .filter(|&i| owner[i] != NO_CLUSTER)
+        .collect();
+    let n = active.len();
     if n < 2 {
         return;
     }
-    let radius: Vec<f64> = blobs
+    let radius: Vec<f64> = active
         .iter()
-        .map(|b| equivalent_radius(b) * factor)
+        .map(|&i| equivalent_radius(&blobs[i]) * factor)
         .collect();
     let r_max = radius.iter().copied().fold(0.0, f64::max);
     if r_max <= 0.0 {
@@ -36,7 +44,7 @@ pub(crate) fn repel(
     }
     // Any interacting pair is closer than 2 r_max, so neighbours lie in the 27 adjacent cells.
     let cell = 2.0 * r_max;
-    let mut pos: Vec<DVec3> = blobs.iter().map(|b| b.center).collect();
+    let mut pos: Vec<DVec3> = active.iter().map(|&i| blobs[i].center).collect();
     let mut order: Vec<u32> = (0..n as u32).collect();
     let mut keys: Vec<(i64, i64, i64)> = vec![(0, 0, 0); n];
     for _ in 0..steps {
@@ -47,38 +55,39 @@ pub(crate) fn repel(
         for (k, p) in keys.iter_mut().zip(&pos) {
             *k = cell_of(*p);
         }
-        order.sort_unstable_by_key(|&i| (keys[i as usize], i));
-        let sorted: Vec<(i64, i64, i64)> = order.iter().map(|&i| keys[i as usize]).collect();
+        order.sort_unstable_by_key(|&a| (keys[a as usize], a));
+        let sorted: Vec<(i64, i64, i64)> = order.iter().map(|&a| keys[a as usize]).collect();
         let next: Vec<DVec3> = (0..n)
             .into_par_iter()
-            .map(|i| {
-                let (cx, cy, cz) = keys[i];
+            .map(|a| {
+                let (cx, cy, cz) = keys[a];
                 let mut push = DVec3::ZERO;
                 for dz in -1..=1 {
                     for dy in -1..=1 {
                         for dx in -1..=1 {
                             let key = (cx + dx, cy + dy, cz + dz);
                             let start = sorted.partition_point(|k| *k < key);
-                            for (&k, &j) in sorted[start..].iter().zip(&order[start..]) {
+                            for (&k, &b) in sorted[start..].iter().zip(&order[start..]) {
                                 if k != key {
                                     break;
                                 }
-                                let j = j as usize;
-                                if j != i {
-                                    push += pair_push(pos[i], pos[j], radius[i] + radius[j], i, j);
+                                let b = b as usize;
+                                if b != a {
+                                    let reach = radius[a] + radius[b];
+                                    push += pair_push(pos[a], pos[b], reach, active[a], active[b]);
                                 }
                             }
                         }
                     }
                 }
-                let b = &boxes[owner[i]];
-                (pos[i] + 0.5 * push).clamp(b.min, b.max)
+                let bx = &boxes[owner[active[a]]];
+                (pos[a] + 0.5 * push).clamp(bx.min, bx.max)
             })
             .collect();
         pos = next;
     }
-    for (b, p) in blobs.iter_mut().zip(pos) {
-        b.center = p;
+    for (&i, p) in active.iter().zip(pos) {
+        blobs[i].center = p;
     }
 }
 

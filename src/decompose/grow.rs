@@ -43,11 +43,12 @@ pub struct Grown {
 
 /// Box of a local-space quadric's inside, moved to world space and padded by `pad`.
 fn world_bounds(q: &Quadric, p: DVec3, pad: f64) -> Option<Aabb> {
-    q.bounds().map(|b| Aabb {
-        min: b.min + p,
-        max: b.max + p,
-    })
-    .map(|b| b.expanded(pad))
+    q.bounds()
+        .map(|b| Aabb {
+            min: b.min + p,
+            max: b.max + p,
+        })
+        .map(|b| b.expanded(pad))
 }
 
 /// Grow from seed `p` (outward unit normal `n`) against `obstacles`; `order` is the chunk order
@@ -77,7 +78,11 @@ pub fn grow_seed(
         |x, y, z| {
             let dn = x * n.x + y * n.y + z * n.z;
             let d2 = x * x + y * y + z * z;
-            if dn < 0.0 { d2 / (-2.0 * dn) } else { f64::INFINITY }
+            if dn < 0.0 {
+                d2 / (-2.0 * dn)
+            } else {
+                f64::INFINITY
+            }
         },
     );
     let q_idx = q_idx?;
@@ -108,8 +113,8 @@ pub fn grow_seed(
     let q1 = Quadric::sphere(c, rho);
     let q2 = Quadric::neg_plane_product(n, 0.0, nq, nq.dot(q));
     let nq_q = nq.dot(q);
-    let alpha_cap = (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq)))
-        .min(4.0 * (limits.max_semi_axis / rho).powi(2));
+    let alpha_cap =
+        (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq))).min(4.0 * (limits.max_semi_axis / rho).powi(2));
     let (alpha, r_idx) = obstacles.first_touch(
         order,
         p,
@@ -159,7 +164,11 @@ pub fn grow_seed(
         |x, y, z| {
             let v = DVec3::new(x, y, z);
             let s3 = q3.eval(v);
-            if s3 < 0.0 { qp.eval(v).max(0.0) / -s3 } else { f64::INFINITY }
+            if s3 < 0.0 {
+                qp.eval(v).max(0.0) / -s3
+            } else {
+                f64::INFINITY
+            }
         },
     );
     if let Some(e) = qp.add_scaled(beta, &q3).ellipsoid() {
@@ -194,6 +203,9 @@ fn beta_limit(qp: &Quadric, m: DVec3, extent: f64) -> Option<f64> {
 /// the capped ellipsoid lies inside the uncapped one, so it stays obstacle-free).
 fn capped(mut g: Grown, p: DVec3, limits: &GrowLimits) -> Grown {
     g.ellipsoid.center += p;
-    g.ellipsoid.semi_axes = g.ellipsoid.semi_axes.min(DVec3::splat(limits.max_semi_axis));
+    g.ellipsoid.semi_axes = g
+        .ellipsoid
+        .semi_axes
+        .min(DVec3::splat(limits.max_semi_axis));
     g
 }

@@ -185,7 +185,11 @@ pub fn grow_candidates(
                 seed_vertex: v,
                 seed: (pos, n),
                 sphere_radius: g.sphere_radius,
-                weight: if w.is_finite() { w.clamp(1.0, cfg.max_weight.max(1.0)) } else { 1.0 },
+                weight: if w.is_finite() {
+                    w.clamp(1.0, cfg.max_weight.max(1.0))
+                } else {
+                    1.0
+                },
                 stage: g.stage,
             })
         })

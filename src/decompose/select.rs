@@ -32,7 +32,11 @@ impl VoxelGrid {
         let size = bounds.size();
         let cells = cells.max(1);
         let longest = size.max_element();
-        let cell = if longest > 0.0 { longest / cells as f64 } else { 1.0 };
+        let cell = if longest > 0.0 {
+            longest / cells as f64
+        } else {
+            1.0
+        };
         let dims = size
             .to_array()
             .map(|s| ((s / cell).ceil() as usize).clamp(1, cells));
@@ -65,7 +69,9 @@ impl VoxelGrid {
     pub fn rasterise(&self, e: &Ellipsoid, out: &mut Vec<(u32, u32)>) {
         let b = e.bounds();
         let range = |axis: usize| {
-            let lo = ((b.min[axis] - self.origin[axis]) / self.cell - 0.5).ceil().max(0.0);
+            let lo = ((b.min[axis] - self.origin[axis]) / self.cell - 0.5)
+                .ceil()
+                .max(0.0);
             let hi = ((b.max[axis] - self.origin[axis]) / self.cell - 0.5).floor();
             (lo as i64, hi.min(self.dims[axis] as f64 - 1.0) as i64)
         };

@@ -158,7 +158,11 @@ pub fn vertex_mean_curvature(mesh: &Mesh) -> Vec<f64> {
             }
             Some(k) => {
                 for m in 0..3 {
-                    area[tri[m] as usize] += if m == k { tri_area / 2.0 } else { tri_area / 4.0 };
+                    area[tri[m] as usize] += if m == k {
+                        tri_area / 2.0
+                    } else {
+                        tri_area / 4.0
+                    };
                 }
             }
         }
