@@ -121,6 +121,9 @@ pub struct Quality {
     pub step_scale: f32,
     /// Resolution of the light-transmittance grid along its longest side.
     pub shadow_grid: u32,
+    /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
+    /// only; at most 6).
+    pub ms_octaves: u32,
 }
 
 impl Quality {
@@ -129,6 +132,7 @@ impl Quality {
         Quality {
             step_scale: 0.25,
             shadow_grid: 128,
+            ms_octaves: 4,
         }
     }
 
@@ -137,6 +141,7 @@ impl Quality {
         Quality {
             step_scale: 0.6,
             shadow_grid: 48,
+            ms_octaves: 3,
         }
     }
 }
