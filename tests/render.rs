@@ -242,7 +242,7 @@ fn exr_reads_back_with_channels_and_values() {
     let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
     assert_eq!(names, ["A", "B", "G", "R", "Z"]);
     let get = |name: &str| -> Vec<f32> {
-        let c = layer.channel_data.list.iter().find(|c| c.name == name).unwrap();
+        let c = layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
         c.sample_data.values_as_f32().collect()
     };
     let (r, a, z) = (get("R"), get("A"), get("Z"));
@@ -300,15 +300,54 @@ fn bench_frame_times() {
 fn look() {
     let blobs = test_cloud(400, 11);
     let dir = std::path::Path::new("/tmp/nephele-look");
-    let s = settings(640, 360, Quality::final_frame());
+    let mut s = settings(640, 360, Quality::final_frame());
+    // Sun from the upper left, a little in front of the cloud.
+    s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
     let f = render_frame(&s, &blobs, 0);
     output::write_png(&dir.join("front.png"), &f, &s).unwrap();
+    let mut lum: Vec<f32> = (0..f.alpha.len())
+        .filter(|&i| f.alpha[i] > 0.99)
+        .map(|i| 0.2126 * f.rgb[i][0] + 0.7152 * f.rgb[i][1] + 0.0722 * f.rgb[i][2])
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let q = |p: f32| lum[((lum.len() - 1) as f32 * p) as usize];
+    println!("opaque luminance p5 {:.3} p50 {:.3} p95 {:.3}", q(0.05), q(0.5), q(0.95));
     // Looking toward the sun: silver lining.
     let mut back = s.clone();
-    back.camera.position = Vec3::new(-1.6, -0.9, -3.4);
+    back.camera.position = Vec3::new(-2.2, 1.4, -3.4);
     let f = render_frame(&back, &blobs, 0);
     output::write_png(&dir.join("against_sun.png"), &f, &back).unwrap();
-    let p = settings(256, 256, Quality::preview());
+    let mut p = settings(256, 256, Quality::preview());
+    p.sun = s.sun;
     let f = render_frame(&p, &blobs, 0);
     output::write_png(&dir.join("preview.png"), &f, &p).unwrap();
+}
+
+#[test]
+#[ignore = "debug"]
+fn look_debug() {
+    let blobs = test_cloud(400, 11);
+    let dir = std::path::Path::new("/tmp/nephele-look");
+    let mut p = settings(256, 256, Quality::preview());
+    p.cloud.noise.amplitude = 0.0;
+    let f = render_frame(&p, &blobs, 0);
+    output::write_png(&dir.join("nonoise.png"), &f, &p).unwrap();
+    let mut p = settings(256, 256, Quality::preview());
+    p.quality.optical_step = 0.05;
+    p.cloud.noise.amplitude = 0.0;
+    let f = render_frame(&p, &blobs, 0);
+    output::write_png(&dir.join("oct1.png"), &f, &p).unwrap();
+}
+
+#[test]
+#[ignore = "debug"]
+fn light_debug() {
+    let blobs = test_cloud(400, 11);
+    let mut s = settings(640, 360, Quality::final_frame());
+    s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
+    let m = BlobMedium::new(&s, &blobs);
+    let g = m.light_grid().unwrap();
+    for x in [-1.2f32, -0.9, -0.6, -0.3, 0.0, 0.3, 0.6, 0.9] {
+        println!("x {x}: {:?}", g.lookup(Vec3A::new(x, 0.0, 0.0)));
+    }
 }

@@ -422,6 +422,10 @@ impl Medium for BlobMedium {
     fn step(&self) -> f32 {
         self.step
     }
+
+    fn max_extinction(&self) -> f32 {
+        self.params.sigma
+    }
 }
 
 #[cfg(test)]

@@ -6,8 +6,9 @@
 //! radiance, coverage and depth. Deterministic at any thread count: each pixel depends only on
 //! its own generator `item_rng(seed ^ frame, Stream::Render, pixel)`.
 //!
-//! Each merged interval `[a, b]` is cut into `n = ⌈(b − a)/step⌉` equal steps; step `k` is
-//! sampled at `a + (k + ξ)·h` (one jitter `ξ` per pixel) and integrated with the
+//! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
+//! the medium, see [`march`]); a segment of length `h` is sampled at `s + ξ·h` (one jitter `ξ`
+//! per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
 //! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`].
@@ -29,8 +30,8 @@ pub const TILE: u32 = 16;
 /// Transmittance below which a ray stops (its coverage is then `1 − T ≥ 0.999`).
 pub const MIN_TRANSMITTANCE: f32 = 1e-3;
 
-/// Most steps one interval may take (guards against unbounded intervals).
-const MAX_STEPS: f32 = 1.0e5;
+/// Most samples one ray may take (guards against unbounded intervals).
+const MAX_STEPS: u32 = 1_000_000;
 
 /// What one pixel's march produced.
 #[derive(Clone, Copy, Debug)]
@@ -64,6 +65,7 @@ fn render_tiles<M: Medium, const SHADE: bool>(
     let cam = CameraRays::new(&settings.camera, w, h);
     let shading = Shading::new(settings);
     let seed = settings.seed ^ frame_index as u64;
+    let optical_step = settings.quality.optical_step.max(1e-3);
     let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let tiles: Vec<Vec<PixelResult>> = (0..tx * ty)
         .into_par_iter()
@@ -77,9 +79,11 @@ fn render_tiles<M: Medium, const SHADE: bool>(
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let pixel = y as u64 * w as u64 + x as u64;
-                        let jitter: f32 = item_rng(seed, Stream::Render, pixel).random();
+                        let jitter: f32 = if std::env::var("NJ").is_ok() { 0.5 } else { item_rng(seed, Stream::Render, pixel).random() };
                         let ray = cam.pixel_ray(x, y);
-                        out.push(march::<M, SHADE>(medium, scratch, &shading, &ray, jitter));
+                        out.push(march::<M, SHADE>(
+                            medium, scratch, &shading, &ray, jitter, optical_step,
+                        ));
                     }
                 }
                 out
@@ -110,7 +114,14 @@ fn render_tiles<M: Medium, const SHADE: bool>(
     frame
 }
 
-/// March one ray. `jitter ∈ [0, 1)` places the sample inside each step.
+/// March one ray. `jitter ∈ [0, 1)` places the sample inside each segment.
+///
+/// Two speeds: coarse segments of [`Medium::step`] cross the empty parts of the intervals; the
+/// first coarse sample that finds extinction is discarded and the march resumes from the last
+/// sample that was empty, in fine
+/// segments of optical thickness at most `optical_step` (so a step never hides a steep change
+/// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
+/// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
 #[inline]
 fn march<M: Medium, const SHADE: bool>(
     medium: &M,
@@ -118,29 +129,49 @@ fn march<M: Medium, const SHADE: bool>(
     shading: &Shading,
     ray: &Ray,
     jitter: f32,
+    optical_step: f32,
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
     let scratch = &*scratch;
     let phase = shading.phase_weights(ray.dir);
-    let step = medium.step().max(1e-9);
+    let coarse = medium.step().max(1e-9);
+    let fine = (optical_step / medium.max_extinction().max(1e-12)).clamp(coarse * 1e-3, coarse);
     let (mut t_acc, mut rgb, mut depth_sum) = (1.0f32, Vec3A::ZERO, 0.0f32);
+    let mut budget = MAX_STEPS;
     'intervals: for &[a, b] in medium.intervals(scratch) {
-        let n = ((b - a) / step).ceil().clamp(1.0, MAX_STEPS);
-        let h = (b - a) / n;
-        for k in 0..n as u32 {
-            let t = a + (k as f32 + jitter) * h;
+        // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
+        let (mut s, mut h, mut empty_run, mut last_empty) = (a, coarse, 0.0f32, a);
+        while s < b && budget > 0 {
+            budget -= 1;
+            let len = h.min(b - s);
+            let t = s + jitter * len;
             let x = ray.at(t);
             let sigma = medium.extinction(scratch, t, x);
             if sigma <= 0.0 {
+                last_empty = t;
+                s += len;
+                empty_run += len;
+                if h < coarse && empty_run >= coarse {
+                    h = coarse;
+                }
                 continue;
             }
-            let absorbed = t_acc * (1.0 - (-sigma * h).exp());
+            empty_run = 0.0;
+            if h > fine {
+                // Found the medium at coarse speed: re-march finely from the last empty sample
+                // (everything before it was sampled empty; what follows was only assumed so).
+                h = fine;
+                s = last_empty;
+                continue;
+            }
+            let absorbed = t_acc * (1.0 - (-sigma * len).exp());
             if SHADE {
                 let [tau_sun, tau_up] = medium.light_depths(x);
                 rgb += shading.in_scattered(&phase, tau_sun, tau_up) * (absorbed * shading.albedo);
             }
             depth_sum += t * absorbed;
             t_acc -= absorbed;
+            s += len;
             if t_acc < MIN_TRANSMITTANCE {
                 break 'intervals;
             }

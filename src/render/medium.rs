@@ -37,8 +37,11 @@ pub trait Medium: Sync {
     /// Optical depths `[toward the sun, straight up]` from `x`.
     fn light_depths(&self, x: Vec3A) -> [f32; 2];
 
-    /// Largest march step (world units).
+    /// Coarse march step through empty parts of the intervals (world units).
     fn step(&self) -> f32;
+
+    /// Upper bound of the extinction (sets the fine step inside the medium).
+    fn max_extinction(&self) -> f32;
 }
 
 /// Shape of a [`Homogeneous`] medium.
@@ -139,5 +142,9 @@ impl Medium for Homogeneous {
 
     fn step(&self) -> f32 {
         self.step
+    }
+
+    fn max_extinction(&self) -> f32 {
+        self.sigma_t
     }
 }
