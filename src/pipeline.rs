@@ -5,6 +5,7 @@ use glam::DVec3;
 
 use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::model_file::MODEL_VERSION;
+use crate::blobby::optimise::{FullConfig, optimise_full};
 use crate::blobby::{Blob, BlobField, BlobModel, SourceInfo, THRESHOLD};
 use crate::decompose::{self, DecomposeConfig, ObstacleShift, Primitive};
 use crate::mesh::LoadedMesh;
@@ -18,6 +19,8 @@ pub enum Optimisation {
     None,
     /// The paper's per-blob Nelder–Mead on `(A, B)`.
     Faithful(FaithfulConfig),
+    /// Beyond the paper: the faithful pass, then every parameter by block Levenberg–Marquardt.
+    Full(FaithfulConfig, FullConfig),
 }
 
 /// Settings of a fit. Lengths are relative to the mesh's bounding-box diagonal.
@@ -127,6 +130,12 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
             (o, o)
         }
         Optimisation::Faithful(f) => optimise_faithful(f, &mut blobs, points, THRESHOLD),
+        Optimisation::Full(f, full) => {
+            let (before, _) = optimise_faithful(f, &mut blobs, points, THRESHOLD);
+            optimise_full(full, &mut blobs, &samples, bounds.diagonal(), THRESHOLD);
+            let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
+            (before, after)
+        }
     });
     let mut radii: Vec<f64> = candidates.iter().map(|c| c.sphere_radius).collect();
     radii.sort_by(f64::total_cmp);

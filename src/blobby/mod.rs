@@ -15,6 +15,7 @@ pub mod codec;
 pub mod field;
 pub mod fit;
 pub mod model_file;
+pub mod optimise;
 pub mod polygonize;
 
 use glam::{DQuat, DVec3};
