@@ -63,9 +63,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .filter(|b| b.is_live())
         .fold(Aabb::EMPTY, |acc, b| acc.union(b.ellipsoid().bounds()));
-    anyhow::ensure!(!bounds.is_empty(), "{}: the model has no live blob", args.input);
+    anyhow::ensure!(
+        !bounds.is_empty(),
+        "{}: the model has no live blob",
+        args.input
+    );
     let diag = model.source.bounds.diagonal();
-    let length_scale = if diag.is_finite() && diag > 0.0 { diag } else { bounds.diagonal() };
+    let length_scale = if diag.is_finite() && diag > 0.0 {
+        diag
+    } else {
+        bounds.diagonal()
+    };
 
     let bar = nephele::progress::bar("preview", args.frames as u64);
     let mut images = Vec::with_capacity(args.frames as usize);
@@ -127,7 +135,10 @@ fn load_or_fit(args: &Args) -> anyhow::Result<BlobModel> {
 
 /// A `.ron` file or a file starting with the blob codec's magic number.
 fn is_model_file(path: &Path) -> bool {
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ron")) {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ron"))
+    {
         return true;
     }
     let mut head = [0u8; 8];
@@ -155,7 +166,11 @@ fn turntable_settings(args: &Args, bounds: Aabb, length_scale: f32, k: u32) -> R
     let distance = radius / (0.5 * fov).sin() * 1.02;
     let angle = std::f32::consts::TAU * k as f32 / args.frames as f32;
     let elev = ELEVATION_DEG.to_radians();
-    let offset = Vec3::new(angle.sin() * elev.cos(), elev.sin(), angle.cos() * elev.cos());
+    let offset = Vec3::new(
+        angle.sin() * elev.cos(),
+        elev.sin(),
+        angle.cos() * elev.cos(),
+    );
     let position = center + offset * distance;
     let forward = (center - position).normalize();
     let right = forward.cross(Vec3::Y).normalize();
@@ -198,4 +213,3 @@ fn write_gif(path: &Path, frames: Vec<image::RgbImage>, fps: u32) -> anyhow::Res
     nephele::atomic::write_bytes_atomically(path, &bytes)?;
     Ok(())
 }
-

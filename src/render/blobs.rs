@@ -273,8 +273,14 @@ impl BlobMedium {
         if self.is_empty() {
             return None;
         }
-        let lo = self.lo.iter().fold(Vec3A::splat(f32::MAX), |a, &b| a.min(b));
-        let hi = self.hi.iter().fold(Vec3A::splat(f32::MIN), |a, &b| a.max(b));
+        let lo = self
+            .lo
+            .iter()
+            .fold(Vec3A::splat(f32::MAX), |a, &b| a.min(b));
+        let hi = self
+            .hi
+            .iter()
+            .fold(Vec3A::splat(f32::MIN), |a, &b| a.max(b));
         Some((lo, hi))
     }
 
@@ -374,10 +380,9 @@ impl BlobMedium {
         let [nx, ny, _] = shape.dims;
         let mut sigma = vec![0.0f32; shape.len()];
         let (h, origin) = (shape.h, shape.origin);
-        sigma
-            .par_chunks_mut(nx * ny)
-            .enumerate()
-            .for_each_init(BlobScratch::default, |s, (k, slice)| {
+        sigma.par_chunks_mut(nx * ny).enumerate().for_each_init(
+            BlobScratch::default,
+            |s, (k, slice)| {
                 let z = origin.z + h * k as f32;
                 s.tile.clear();
                 s.tile.extend(
@@ -388,9 +393,12 @@ impl BlobMedium {
                 for j in 0..ny {
                     let y = origin.y + h * j as f32;
                     row_candidates.clear();
-                    row_candidates.extend(s.tile.iter().copied().filter(|&i| {
-                        self.lo[i as usize].y <= y && y <= self.hi[i as usize].y
-                    }));
+                    row_candidates.extend(
+                        s.tile
+                            .iter()
+                            .copied()
+                            .filter(|&i| self.lo[i as usize].y <= y && y <= self.hi[i as usize].y),
+                    );
                     let ray = Ray {
                         origin: Vec3A::new(origin.x, y, z),
                         dir: Vec3A::X,
@@ -405,7 +413,8 @@ impl BlobMedium {
                         }
                     }
                 }
-            });
+            },
+        );
         let sun = Vec3A::from(settings.sun.direction)
             .try_normalize()
             .unwrap_or(Vec3A::NEG_Y);
@@ -422,10 +431,9 @@ impl Medium for BlobMedium {
 
     fn begin_tile(&self, frustum: &Frustum, s: &mut BlobScratch) {
         s.tile.clear();
-        s.tile.extend(
-            (0..self.len() as u32)
-                .filter(|&i| frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])),
-        );
+        s.tile.extend((0..self.len() as u32).filter(|&i| {
+            frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
+        }));
     }
 
     fn begin_ray(&self, ray: &Ray, s: &mut BlobScratch) {
@@ -489,7 +497,11 @@ mod tests {
         assert_eq!(gain(1.0, 2.0), 1.0);
         assert_eq!(gain(1.0, 0.5), 1.0);
         // A steep fitted blob (A = 0.05, B = 9.48): about 8.7 times the canonical slope.
-        assert!((gain(0.05, 9.48) - 8.75).abs() < 0.05, "{}", gain(0.05, 9.48));
+        assert!(
+            (gain(0.05, 9.48) - 8.75).abs() < 0.05,
+            "{}",
+            gain(0.05, 9.48)
+        );
     }
 
     #[test]

@@ -82,7 +82,12 @@ fn render_tiles<M: Medium, const SHADE: bool>(
                         let jitter: f32 = item_rng(seed, Stream::Render, pixel).random();
                         let ray = cam.pixel_ray(x, y);
                         out.push(march::<M, SHADE>(
-                            medium, scratch, &shading, &ray, jitter, optical_step,
+                            medium,
+                            scratch,
+                            &shading,
+                            &ray,
+                            jitter,
+                            optical_step,
                         ));
                     }
                 }

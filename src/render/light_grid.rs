@@ -98,7 +98,8 @@ impl LightGrid {
         let i00 = i + nx * (j + ny * k);
         let (sy, sz) = (nx, nx * ny);
         let t = &self.tau;
-        let lerp2 = |a: [f32; 2], b: [f32; 2], s: f32| [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])];
+        let lerp2 =
+            |a: [f32; 2], b: [f32; 2], s: f32| [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])];
         let x00 = lerp2(t[i00], t[i00 + 1], w.x);
         let x10 = lerp2(t[i00 + sy], t[i00 + sy + 1], w.x);
         let x01 = lerp2(t[i00 + sz], t[i00 + sz + 1], w.x);
@@ -149,7 +150,8 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
                             if qb < 0 || qb >= n[b] as isize || wcb == 0.0 {
                                 continue;
                             }
-                            let q = qa as usize * stride[a] + qb as usize * stride[b] + pk * stride[k];
+                            let q =
+                                qa as usize * stride[a] + qb as usize * stride[b] + pk * stride[k];
                             tq += wca * wcb * tau[q];
                             sq += wca * wcb * sigma[q];
                         }

@@ -135,7 +135,12 @@ impl Shading {
     /// In-scattered radiance per unit scattering coefficient at a point with optical depth
     /// `tau_sun` toward the sun and `tau_up` straight up, for a ray with phase weights `w`.
     #[inline]
-    pub fn in_scattered(&self, w: &[f32; MAX_OCTAVES as usize], tau_sun: f32, tau_up: f32) -> Vec3A {
+    pub fn in_scattered(
+        &self,
+        w: &[f32; MAX_OCTAVES as usize],
+        tau_sun: f32,
+        tau_up: f32,
+    ) -> Vec3A {
         // Octave i sees extinction scaled by 2^−i: T_i = exp(−τ/2^i). Start from the last octave
         // and square upward (one exp for all octaves).
         let n = self.octaves as usize;
