@@ -518,3 +518,51 @@ fn light_debug() {
         println!("x {x}: {:?}", g.lookup(Vec3A::new(x, 0.0, 0.0)));
     }
 }
+
+#[test]
+fn preview_cli_writes_frames_and_gif() {
+    use nephele::blobby::{BlobModel, SourceInfo, model_file::MODEL_VERSION};
+    let dir = std::env::temp_dir().join(format!("nephele-preview-{}", std::process::id()));
+    let blobs = test_cloud(20, 2);
+    let bounds = blobs.iter().fold(nephele::geometry::Aabb::EMPTY, |b, x| {
+        b.union(x.ellipsoid().bounds())
+    });
+    let model = BlobModel {
+        version: MODEL_VERSION,
+        primitive: nephele::decompose::Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: SourceInfo {
+            mesh: "test".into(),
+            bounds,
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    };
+    let path = dir.join("cloud.ron");
+    nephele::blobby::save_model(&path, &model).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["preview", path.to_str().unwrap(), "-o"])
+        .arg(dir.join("out"))
+        .args(["--frames", "3", "--size", "32"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["turntable_0001.png", "turntable_0003.png", "turntable.gif"] {
+        assert!(dir.join("out").join(f).is_file(), "{f} missing");
+    }
+    assert!(String::from_utf8_lossy(&out.stderr).contains("s/frame"));
+    // A missing input fails cleanly with its name.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["preview", "/nonexistent/model.ron", "--frames", "1"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent/model.ron"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
