@@ -8,10 +8,16 @@
 //! fractal noise and pushed through a smoothstep across the soft edge:
 //!
 //! ```text
-//! σ_t(x) = σ · smoothstep(1 − edge, 1 + edge, g + amplitude · e(g) · n(x)),  σ = density / L
+//! σ_t(x) = σ · smoothstep(1 − k·edge, 1 + k·edge, g + k · amplitude · e(g) · n(x)),  σ = density / L
 //! e(g) = clamp(1 − 0.75 (g − 1), 0.25, 1)          (noise erodes the edge more than the core)
 //! n(x) = Σ_i w_i fbm(N_i x + o_i) / Σ_i w_i,  w_i = max(f_i − ½ max_j f_j, 0)
+//! k(x) = Σ_i w_i k_i / Σ_i w_i
 //! ```
+//!
+//! `k_i` is blob `i`'s field slope `|∂f_i/∂ρ|` on its own iso-surface relative to the canonical
+//! blob's (`A = 1, B = 2`: slope 4), clamped to `[¼, 16]`. Fitted blobs with a small `A` and a
+//! large `B` have a much steeper field; without `k` their edge would be hard and their noise
+//! invisible. With it, edge width and noise relief are about the same fraction of every blob.
 //!
 //! `N_i = (frequency / L)·R_iᵀ(x − c_i)` is blob `i`'s local frame in units of `L` (the length
 //! scale) and `o_i` a seeded offset drawn for the blob's index, so the texture moves and turns
@@ -63,6 +69,8 @@ struct Hit {
     t0: f32,
     t1: f32,
     b2: f32,
+    /// Edge and noise gain `k_i`.
+    gain: f32,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
     o: Vec3A,
     d: Vec3A,
@@ -97,20 +105,32 @@ impl DensityParams {
         (1.0 - 0.75 * (g - 1.0)).clamp(0.25, 1.0)
     }
 
-    /// `σ_t` for normalised field `g`; `noise()` is called only when it matters.
+    /// `σ_t` for normalised field `g` and gain `k`; `noise()` (in `[−1, 1]`) is called only
+    /// when it can change the result.
     #[inline]
-    fn extinction(&self, g: f32, noise: impl FnOnce() -> f32) -> f32 {
-        let e = Self::erosion(g);
-        let amp = self.amplitude * e;
-        if g + amp <= 1.0 - self.edge {
+    fn extinction(&self, g: f32, k: f32, noise: impl FnOnce() -> f32) -> f32 {
+        let amp = self.amplitude * Self::erosion(g) * k;
+        let edge = self.edge * k;
+        if g + amp <= 1.0 - edge {
             return 0.0;
         }
-        if g - amp >= 1.0 + self.edge {
+        if g - amp >= 1.0 + edge {
             return self.sigma;
         }
         let v = if amp > 0.0 { g + amp * noise() } else { g };
-        self.sigma * smoothstep(1.0 - self.edge, 1.0 + self.edge, v)
+        self.sigma * smoothstep(1.0 - edge, 1.0 + edge, v)
     }
+}
+
+/// Edge and noise gain of a blob: its field slope `|∂f/∂ρ| = 4Bρ/(1+A)` at its own iso-surface
+/// `ρ² = (1+A)(1 − 1/B)`, over the canonical blob's slope 4, clamped to `[¼, 16]`; 1 when the
+/// blob alone never reaches the iso-level (`B ≤ 1`).
+fn gain(a: f64, b: f64) -> f32 {
+    if b <= 1.0 {
+        return 1.0;
+    }
+    let rho = ((1.0 + a) * (1.0 - 1.0 / b)).sqrt();
+    ((4.0 * b * rho / (1.0 + a)) / 4.0).clamp(0.25, 16.0) as f32
 }
 
 /// `smoothstep` over `[lo, hi]`; a step at `lo` when the range is empty.
@@ -133,6 +153,8 @@ pub struct BlobMedium {
     noise_from_world: Vec<Mat3A>,
     noise_offset: Vec<Vec3A>,
     b2: Vec<f32>,
+    /// Edge and noise gain `k_i` (see the module doc).
+    gain: Vec<f32>,
     /// Bounding-ball radius of the support.
     radius: Vec<f32>,
     lo: Vec<Vec3A>,
@@ -162,6 +184,7 @@ impl BlobMedium {
             noise_from_world: Vec::new(),
             noise_offset: Vec::new(),
             b2: Vec::new(),
+            gain: Vec::new(),
             radius: Vec::new(),
             lo: Vec::new(),
             hi: Vec::new(),
@@ -213,6 +236,7 @@ impl BlobMedium {
             m.noise_from_world.push(local_from_world * freq);
             m.noise_offset.push(offset);
             m.b2.push((blob.b * blob.b) as f32);
+            m.gain.push(gain(blob.a, blob.b.abs()));
             m.radius.push(support.max_element());
             m.lo.push(center - half);
             m.hi.push(center + half);
@@ -281,6 +305,7 @@ impl BlobMedium {
                     t0,
                     t1,
                     b2: self.b2[i],
+                    gain: self.gain[i],
                     o,
                     d,
                     no: n * rel + self.noise_offset[i],
@@ -327,14 +352,21 @@ impl BlobMedium {
             return 0.0;
         }
         let p = &self.params;
-        p.extinction(g * p.inv_threshold, || {
-            let (mut sum, mut wsum) = (0.0, 0.0);
+        let (mut ksum, mut wsum) = (0.0, 0.0);
+        for &(f, k) in &act[..n] {
+            let w = f - 0.5 * fmax;
+            if w > 0.0 {
+                ksum += w * hits[k as usize].gain;
+                wsum += w;
+            }
+        }
+        p.extinction(g * p.inv_threshold, ksum / wsum, || {
+            let mut sum = 0.0;
             for &(f, k) in &act[..n] {
                 let w = f - 0.5 * fmax;
                 if w > 0.0 {
                     let h = &hits[k as usize];
                     sum += w * fbm(h.no + h.nd * t, p.octaves);
-                    wsum += w;
                 }
             }
             (sum / wsum).clamp(-1.0, 1.0)
@@ -455,6 +487,21 @@ mod tests {
         assert!(ray_ellipsoid(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z).is_none());
         assert!(ray_ellipsoid(Vec3A::new(0.0, 1.5, -3.0), Vec3A::Z).is_none());
         assert!(ray_ellipsoid(Vec3A::ZERO, Vec3A::ZERO).is_none());
+    }
+
+    #[test]
+    fn canonical_blob_has_unit_gain() {
+        for a in [0.3, 1.0, 2.0] {
+            assert!((gain(a, (1.0 + a) / a) - 1.0 / a as f32).abs() < 1e-6);
+        }
+        assert_eq!(gain(1.0, 2.0), 1.0);
+        assert_eq!(gain(1.0, 0.5), 1.0);
+        // A steep fitted blob (A = 0.05, B = 9.48): about 8.7 times the canonical slope.
+        assert!(
+            (gain(0.05, 9.48) - 8.75).abs() < 0.05,
+            "{}",
+            gain(0.05, 9.48)
+        );
     }
 
     #[test]

@@ -147,7 +147,7 @@ mod tests {
         assert!((top.y.atan2(-top.z).to_degrees() - 20.0).abs() < 1e-3);
         assert!(rays.dir(64.0, 18.0).x > 0.0);
         let f = rays.frustum(0, 0, 16, 16);
-        assert!(f.may_contain_ball(Vec3A::from(rays.dir(8.0, 8.0) * 3.0 + rays.position), 0.01));
+        assert!(f.may_contain_ball(rays.dir(8.0, 8.0) * 3.0 + rays.position, 0.01));
         assert!(!f.may_contain_ball(Vec3A::new(3.0, -3.0, 0.0), 0.1));
         assert!(!f.may_contain_ball(Vec3A::new(0.0, 0.0, 9.0), 0.5));
     }

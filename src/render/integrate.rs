@@ -79,11 +79,7 @@ fn render_tiles<M: Medium, const SHADE: bool>(
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let pixel = y as u64 * w as u64 + x as u64;
-                        let jitter: f32 = if std::env::var("NJ").is_ok() {
-                            0.5
-                        } else {
-                            item_rng(seed, Stream::Render, pixel).random()
-                        };
+                        let jitter: f32 = item_rng(seed, Stream::Render, pixel).random();
                         let ray = cam.pixel_ray(x, y);
                         out.push(march::<M, SHADE>(
                             medium,

@@ -35,7 +35,7 @@ impl Default for Sun {
         Sun {
             direction: Vec3::new(-0.4, -0.8, -0.3),
             color: Vec3::new(1.0, 0.95, 0.85),
-            intensity: 20.0,
+            intensity: 12.0,
         }
     }
 }
@@ -77,8 +77,8 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.35,
-            frequency: 3.0,
+            amplitude: 1.5,
+            frequency: 5.0,
             octaves: 4,
         }
     }
@@ -135,7 +135,7 @@ impl Quality {
         Quality {
             step_scale: 0.25,
             shadow_grid: 128,
-            ms_octaves: 4,
+            ms_octaves: 3,
             optical_step: 0.25,
         }
     }
@@ -145,7 +145,7 @@ impl Quality {
         Quality {
             step_scale: 0.6,
             shadow_grid: 48,
-            ms_octaves: 3,
+            ms_octaves: 2,
             optical_step: 0.5,
         }
     }
