@@ -6,6 +6,10 @@
 //! [`mesh`] → [`decompose`] → [`blobby`] (field, fit, codec, polygonize) → [`animate`] →
 //! [`render`], with [`scene`] tying a shot together and [`pipeline`] running a fit.
 #![warn(missing_docs)]
+// `!(x > 0.0)` is used on purpose: it rejects NaN along with non-positive values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Small dense linear algebra (3×3, 10×10) reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
 
 pub mod animate;
 pub mod atomic;
