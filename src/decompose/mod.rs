@@ -37,6 +37,10 @@ use obstacles::ObstacleSet;
 /// Semi-axis cap as a fraction of `D` (open meshes would otherwise grow without bound).
 pub const MAX_SEMI_AXIS: f64 = 0.5;
 
+/// Clearance kept from each stage's contact before the next stage grows, fraction of `D`
+/// (see [`grow`]).
+pub const CONTACT_MARGIN: f64 = 5e-4;
+
 /// Seeds whose inscribed sphere is below this fraction of `D` are dropped.
 pub const MIN_SPHERE_RADIUS: f64 = 1e-4;
 
@@ -156,7 +160,7 @@ pub fn grow_candidates(
     samples: &SurfaceSamples,
 ) -> Vec<Candidate> {
     let diagonal = mesh.bounds().diagonal();
-    let obstacles = ObstacleSet::new(&obstacles(cfg, samples, diagonal));
+    let obstacles = ObstacleSet::new(&obstacles(cfg, samples, diagonal), &samples.normals);
     if obstacles.is_empty() || !(diagonal > 0.0) {
         return Vec::new();
     }
@@ -167,6 +171,8 @@ pub fn grow_candidates(
         max_semi_axis: MAX_SEMI_AXIS * diagonal,
         min_radius: MIN_SPHERE_RADIUS * diagonal,
         sphere_only: cfg.primitive == Primitive::Sphere,
+        surface_normal_at_q: false,
+        margin: CONTACT_MARGIN * diagonal,
     };
     seeds
         .par_iter()
