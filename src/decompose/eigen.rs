@@ -39,8 +39,8 @@ pub fn symmetric_eigen(m: &DMat3) -> (DVec3, DMat3) {
                 row[p] = c * x - s * y;
                 row[q] = s * x + c * y;
             }
-            for k in 0..3 {
-                let (x, y) = (a[p][k], a[q][k]);
+            let (row_p, row_q) = (a[p], a[q]);
+            for (k, (&x, &y)) in row_p.iter().zip(&row_q).enumerate() {
                 a[p][k] = c * x - s * y;
                 a[q][k] = s * x + c * y;
             }
@@ -54,7 +54,11 @@ pub fn symmetric_eigen(m: &DMat3) -> (DVec3, DMat3) {
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| a[j][j].total_cmp(&a[i][i]));
     let col = |k: usize| DVec3::new(v[0][k], v[1][k], v[2][k]);
-    let values = DVec3::new(a[order[0]][order[0]], a[order[1]][order[1]], a[order[2]][order[2]]);
+    let values = DVec3::new(
+        a[order[0]][order[0]],
+        a[order[1]][order[1]],
+        a[order[2]][order[2]],
+    );
     let (x, y) = (col(order[0]), col(order[1]));
     // Third axis from the cross product: orthonormal and right-handed by construction.
     let z = x.cross(y);

@@ -16,6 +16,13 @@
 //! once on a near-tie (observed: `α ≈ 0.006` at the pole of a 2:1:0.5 ellipsoid that should
 //! reach `α = 3`). Each stage therefore starts from its predecessor pulled in by a small
 //! clearance `μ` at the contact (`μ ≪ ε`; the contacts remain on the obstacle layer's scale).
+//!
+//! Thin results: the perpendicular stage grows along the plane normal until an obstacle is
+//! touched, and an ellipsoid thinner than the gaps between samples can grow through the surface
+//! between them (observed on the horse: needles 0.003·D thick, 0.06·D long, half outside the
+//! mesh). Its result is kept only when its smallest semi-axis is at least
+//! `min_stage3_axis` (1.5 mean sample spacings in the pipeline); ~2 % of seeds fall back to the
+//! wedge stage, which showed no such leaks.
 
 use glam::DVec3;
 
@@ -38,6 +45,9 @@ pub struct GrowLimits {
     /// Clearance kept from the contacts `q` (sphere shrunk by it before the wedge stage) and
     /// `r` (wedge backed off by it before the perpendicular stage).
     pub margin: f64,
+    /// A perpendicular-stage result thinner than this (smallest semi-axis) is rejected in
+    /// favour of the wedge stage: it can slip between samples (module notes).
+    pub min_stage3_axis: f64,
     /// Use the touching obstacle's own smooth normal as `n_q` instead of the sphere's normal
     /// `(q − c)/ρ` there (the design's choice, used by the pipeline); see [`grow_seed`].
     pub surface_normal_at_q: bool,
@@ -56,11 +66,12 @@ pub struct Grown {
 
 /// Box of a local-space quadric's inside, moved to world space and padded by `pad`.
 fn world_bounds(q: &Quadric, p: DVec3, pad: f64) -> Option<Aabb> {
-    q.bounds().map(|b| Aabb {
-        min: b.min + p,
-        max: b.max + p,
-    })
-    .map(|b| b.expanded(pad))
+    q.bounds()
+        .map(|b| Aabb {
+            min: b.min + p,
+            max: b.max + p,
+        })
+        .map(|b| b.expanded(pad))
 }
 
 /// Grow from seed `p` (outward unit normal `n`) against `obstacles`; `order` is the chunk order
@@ -97,7 +108,11 @@ pub fn grow_seed(
         |x, y, z| {
             let dn = x * n.x + y * n.y + z * n.z;
             let d2 = x * x + y * y + z * z;
-            if dn < 0.0 { d2 / (-2.0 * dn) } else { f64::INFINITY }
+            if dn < 0.0 {
+                d2 / (-2.0 * dn)
+            } else {
+                f64::INFINITY
+            }
         },
     );
     let q_idx = q_idx?;
@@ -135,8 +150,8 @@ pub fn grow_seed(
     let q1 = Quadric::sphere(c, rho2);
     let q2 = Quadric::neg_plane_product(n, 0.0, nq, nq.dot(q));
     let nq_q = nq.dot(q);
-    let alpha_cap = (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq)))
-        .min(4.0 * (limits.max_semi_axis / rho2).powi(2));
+    let alpha_cap =
+        (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq))).min(4.0 * (limits.max_semi_axis / rho2).powi(2));
     let (alpha, r_idx) = obstacles.first_touch(
         order,
         p,
@@ -161,7 +176,11 @@ pub fn grow_seed(
             let ab = (n.dot(r) * (nq.dot(r) - nq_q)).abs();
             let grad = 2.0 * (q1.add_scaled(alpha, &q2).matrix() * r + q1.add_scaled(alpha, &q2).b);
             let back = limits.margin * grad.length() / ab;
-            if back.is_finite() { (alpha - back).max(0.0) } else { alpha }
+            if back.is_finite() {
+                (alpha - back).max(0.0)
+            } else {
+                alpha
+            }
         }
         None => alpha,
     };
@@ -197,12 +216,18 @@ pub fn grow_seed(
         |x, y, z| {
             let v = DVec3::new(x, y, z);
             let s3 = q3.eval(v);
-            if s3 < 0.0 { qp.eval(v).max(0.0) / -s3 } else { f64::INFINITY }
+            if s3 < 0.0 {
+                qp.eval(v).max(0.0) / -s3
+            } else {
+                f64::INFINITY
+            }
         },
     );
     if let Some(e) = qp.add_scaled(beta, &q3).ellipsoid() {
-        grown.ellipsoid = e;
-        grown.stage = 3;
+        if e.semi_axes.min_element() >= limits.min_stage3_axis {
+            grown.ellipsoid = e;
+            grown.stage = 3;
+        }
     }
     Some(capped(grown, p, limits))
 }
@@ -232,6 +257,9 @@ fn beta_limit(qp: &Quadric, m: DVec3, extent: f64) -> Option<f64> {
 /// the capped ellipsoid lies inside the uncapped one, so it stays obstacle-free).
 fn capped(mut g: Grown, p: DVec3, limits: &GrowLimits) -> Grown {
     g.ellipsoid.center += p;
-    g.ellipsoid.semi_axes = g.ellipsoid.semi_axes.min(DVec3::splat(limits.max_semi_axis));
+    g.ellipsoid.semi_axes = g
+        .ellipsoid
+        .semi_axes
+        .min(DVec3::splat(limits.max_semi_axis));
     g
 }

@@ -15,6 +15,9 @@
 //! faces around a seed vertex (which dip below its tangent plane linearly with distance) from
 //! collapsing the inscribed sphere to a needle.
 
+// `!(x > 0.0)` is the intended NaN-rejecting test throughout the decomposition.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -40,6 +43,10 @@ pub const MAX_SEMI_AXIS: f64 = 0.5;
 /// Clearance kept from each stage's contact before the next stage grows, fraction of `D`
 /// (see [`grow`]).
 pub const CONTACT_MARGIN: f64 = 5e-4;
+
+/// Smallest semi-axis of an accepted perpendicular-stage ellipsoid, in mean sample spacings
+/// `√(area / samples)` (see [`grow`]).
+pub const STAGE3_MIN_AXIS: f64 = 1.5;
 
 /// Seeds whose inscribed sphere is below this fraction of `D` are dropped.
 pub const MIN_SPHERE_RADIUS: f64 = 1e-4;
@@ -173,6 +180,7 @@ pub fn grow_candidates(
         sphere_only: cfg.primitive == Primitive::Sphere,
         surface_normal_at_q: false,
         margin: CONTACT_MARGIN * diagonal,
+        min_stage3_axis: STAGE3_MIN_AXIS * (mesh.area() / obstacles.len() as f64).sqrt(),
     };
     seeds
         .par_iter()
@@ -191,7 +199,11 @@ pub fn grow_candidates(
                 seed_vertex: v,
                 seed: (pos, n),
                 sphere_radius: g.sphere_radius,
-                weight: if w.is_finite() { w.clamp(1.0, cfg.max_weight.max(1.0)) } else { 1.0 },
+                weight: if w.is_finite() {
+                    w.clamp(1.0, cfg.max_weight.max(1.0))
+                } else {
+                    1.0
+                },
                 stage: g.stage,
             })
         })

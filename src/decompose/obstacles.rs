@@ -72,9 +72,8 @@ impl ObstacleSet {
             .step_by(CHUNK)
             .map(|start| {
                 let end = (start + CHUNK).min(keyed.len());
-                let bounds = (start..end).fold(Aabb::EMPTY, |b, i| {
-                    b.grown(DVec3::new(xs[i], ys[i], zs[i]))
-                });
+                let bounds =
+                    (start..end).fold(Aabb::EMPTY, |b, i| b.grown(DVec3::new(xs[i], ys[i], zs[i])));
                 Chunk {
                     start: start as u32,
                     end: end as u32,
@@ -177,7 +176,11 @@ mod tests {
         let pts: Vec<DVec3> = (0..5000)
             .map(|i| {
                 let f = i as f64;
-                DVec3::new((f * 0.731).sin(), (f * 1.917).cos(), (f * 0.377).sin() * 0.5)
+                DVec3::new(
+                    (f * 0.731).sin(),
+                    (f * 1.917).cos(),
+                    (f * 0.377).sin() * 0.5,
+                )
             })
             .collect();
         let set = ObstacleSet::new(&pts, &vec![DVec3::Z; pts.len()]);
@@ -192,10 +195,18 @@ mod tests {
                 o,
                 f64::INFINITY,
                 [u32::MAX; 2],
-                |t| Some(Aabb { min: o - DVec3::splat(t.sqrt()), max: o + DVec3::splat(t.sqrt()) }),
+                |t| {
+                    Some(Aabb {
+                        min: o - DVec3::splat(t.sqrt()),
+                        max: o + DVec3::splat(t.sqrt()),
+                    })
+                },
                 |x, y, z| x * x + y * y + z * z,
             );
-            let brute = pts.iter().map(|p| p.distance_squared(o)).fold(f64::INFINITY, f64::min);
+            let brute = pts
+                .iter()
+                .map(|p| p.distance_squared(o))
+                .fold(f64::INFINITY, f64::min);
             assert_eq!(best, brute);
             assert_eq!(set.position(arg.unwrap()).distance_squared(o), brute);
         }

@@ -5,6 +5,9 @@
 //! cotangent-Laplacian vertex estimate). Deterministic at any thread count: sample `i` draws
 //! from its own generator `item_rng(seed, Stream::Samples, i)`.
 
+// `!(x > 0.0)` is the intended NaN-rejecting test here.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::DVec3;
 use rand::RngExt;
 use rayon::prelude::*;
@@ -158,7 +161,11 @@ pub fn vertex_mean_curvature(mesh: &Mesh) -> Vec<f64> {
             }
             Some(k) => {
                 for m in 0..3 {
-                    area[tri[m] as usize] += if m == k { tri_area / 2.0 } else { tri_area / 4.0 };
+                    area[tri[m] as usize] += if m == k {
+                        tri_area / 2.0
+                    } else {
+                        tri_area / 4.0
+                    };
                 }
             }
         }

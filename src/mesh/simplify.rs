@@ -132,7 +132,10 @@ mod tests {
         // Every point of the sphere has a seed nearby (seeds spread, not clustered).
         let seeds: Vec<_> = v.iter().map(|&i| m.positions[i as usize]).collect();
         for p in m.positions.iter().step_by(37) {
-            let d = seeds.iter().map(|s| s.distance(*p)).fold(f64::MAX, f64::min);
+            let d = seeds
+                .iter()
+                .map(|s| s.distance(*p))
+                .fold(f64::MAX, f64::min);
             assert!(d < 0.25, "{p} is {d} from its nearest seed");
         }
     }
