@@ -255,7 +255,8 @@ fn three_hundred_blobs_at_resolution_200() {
 
 /// A fresh scratch directory under the system temp dir.
 fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("nephele-polygonize-{name}-{}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("nephele-polygonize-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
@@ -286,16 +287,28 @@ fn cli_mesh_writes_a_closed_obj_and_ply() {
     for ext in ["obj", "ply"] {
         let out = dir.join(format!("surface.{ext}"));
         let status = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
-            .args(["mesh", model_path.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .args([
+                "mesh",
+                model_path.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ])
             .args(["--resolution", "48"])
             .output()
             .unwrap();
         let stdout = String::from_utf8_lossy(&status.stdout);
-        assert!(status.status.success(), "{stdout} {}", String::from_utf8_lossy(&status.stderr));
+        assert!(
+            status.status.success(),
+            "{stdout} {}",
+            String::from_utf8_lossy(&status.stderr)
+        );
         assert!(stdout.contains("triangles"), "{stdout}");
         let mesh = nephele::mesh::io::read_mesh(&out).unwrap();
         assert_closed_oriented(&mesh, ext);
-        let direct = polygonize(&nephele::blobby::load_model(&model_path).unwrap().field(), 48);
+        let direct = polygonize(
+            &nephele::blobby::load_model(&model_path).unwrap().field(),
+            48,
+        );
         assert_eq!(mesh.triangles.len(), direct.triangles.len(), "{ext}");
     }
     // Bad input: a missing model and a wrong extension fail with a message, no panic.

@@ -122,7 +122,11 @@ impl<'a> Reader<'a> {
         Ok(f32::from_le_bytes(self.take(what)?) as f64)
     }
     pub fn vec3(&mut self, what: &str) -> Result<DVec3, ModelError> {
-        Ok(DVec3::new(self.f32(what)?, self.f32(what)?, self.f32(what)?))
+        Ok(DVec3::new(
+            self.f32(what)?,
+            self.f32(what)?,
+            self.f32(what)?,
+        ))
     }
 
     /// A u16-length-prefixed UTF-8 string.
