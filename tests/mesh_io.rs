@@ -277,7 +277,12 @@ fn shared_models_match_their_readme() {
 
 #[test]
 fn mutated_files_never_panic() {
-    let stats = mutate::mutation_run(0x6e65_7068_656c_65, 1000);
+    // NEPHELE_MUTATIONS=N runs N mutants per seed file instead of 1000 (for longer soaks).
+    let per_seed = std::env::var("NEPHELE_MUTATIONS")
+        .ok()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(1000);
+    let stats = mutate::mutation_run(0x6e65_7068_656c_65, per_seed);
     for s in &stats {
         eprintln!("{s}");
     }
