@@ -382,7 +382,12 @@ fn shared_models_match_their_readme() {
 
 #[test]
 fn mutated_files_never_panic() {
-    let stats = mutate::mutation_run(0x6e65_7068_656c_65, 1000);
+    // NEPHELE_MUTATIONS=N runs N mutants per seed file instead of 1000 (for longer soaks).
+    let per_seed = std::env::var("NEPHELE_MUTATIONS")
+        .ok()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(1000);
+    let stats = mutate::mutation_run(0x006e_6570_6865_6c65, per_seed);
     for s in &stats {
         eprintln!("{s}");
     }
@@ -401,4 +406,24 @@ fn parse_mesh_bytes_matches_read_mesh() {
     .unwrap_err()
     .to_string();
     assert!(e.starts_with("mem.ply:6: binary face 6"), "{e}");
+}
+
+/// Read speed of the two big PLY models (best of 5, release build):
+/// `cargo test --release --test mesh_io read_speed -- --ignored --nocapture`.
+#[test]
+#[ignore = "timing; run alone in release"]
+fn read_speed() {
+    let Some(dir) = models_dir() else { return };
+    for name in ["horse.ply", "armadillo.ply", "bunny-scan-open.obj"] {
+        let path = dir.join(name);
+        let best = (0..5)
+            .map(|_| {
+                let start = Instant::now();
+                read_mesh(&path).unwrap();
+                start.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min);
+        eprintln!("{name}: best of 5 read_mesh {:.1} ms", best * 1e3);
+        assert!(best < 0.2, "{name} took {best} s");
+    }
 }

@@ -3,8 +3,10 @@
 //! surface samples; a few sweeps.
 //!
 //! Only samples inside a blob's largest allowed support (`A = a_max`) can change with that blob,
-//! and in its local frame each sample reduces to its squared ellipsoidal radius `q = ρ²`, so one
-//! objective evaluation is a loop over a few hundred `(q, rest)` pairs.
+//! and in its local frame each sample reduces to its squared ellipsoidal radius `q = ρ²`. With
+//! the pairs `(q, rest)` sorted by `q`, the blob's cost is a polynomial in `B²` and `1/(1+A)`
+//! whose coefficients are prefix sums of `rest·qʲ` and `qʲ` up to `q < 1 + A`: one objective
+//! evaluation is a binary search ([`SortedCost`]), not a loop over thousands of samples.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -92,19 +94,75 @@ fn neighbourhoods(blobs: &[Blob], samples: &[DVec3], a_max: f64) -> Neighbourhoo
     }
     let mut fill = counts.clone();
     let total = counts[blobs.len()];
-    let (mut sample, mut rho2) = (vec![0u32; total], vec![0.0; total]);
+    let mut pairs = vec![(0.0f64, 0u32); total];
     for (p, list) in per_sample.iter().enumerate() {
         for &(i, q) in list {
             let k = &mut fill[i as usize];
-            sample[*k] = p as u32;
-            rho2[*k] = q;
+            pairs[*k] = (q, p as u32);
             *k += 1;
         }
     }
+    // Each blob's samples by increasing ρ² (ties by sample index: a total order).
+    let mut segments = Vec::with_capacity(blobs.len());
+    let mut rest = pairs.as_mut_slice();
+    for i in 0..blobs.len() {
+        let (head, tail) = rest.split_at_mut(counts[i + 1] - counts[i]);
+        segments.push(head);
+        rest = tail;
+    }
+    segments
+        .into_par_iter()
+        .for_each(|seg| seg.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1))));
     Neighbourhoods {
         start: counts,
-        sample,
-        rho2,
+        sample: pairs.iter().map(|p| p.1).collect(),
+        rho2: pairs.iter().map(|p| p.0).collect(),
+    }
+}
+
+/// `Σ_k (r_k + B²·(1 − q_k/(1+A))₊²)²` over pairs sorted by `q`, in O(log n) per evaluation.
+///
+/// For `s = 1 + A` only the prefix `q < s` has a blob term; expanding `u = 1 − q/s`,
+/// `Σ (r + B²u²)² = Σ r² + 2B²(R₀ − 2R₁/s + R₂/s²) + B⁴(P₀ − 4P₁/s + 6P₂/s² − 4P₃/s³ + P₄/s⁴)`
+/// with prefix sums `Rⱼ = Σ r qʲ`, `Pⱼ = Σ qʲ`, plus `Σ r²` over all pairs.
+pub struct SortedCost<'a> {
+    q: &'a [f64],
+    /// Prefix sums, entry `k` over the first `k` pairs: `[R0, R1, R2, P0, P1, P2, P3, P4]`.
+    prefix: Vec<[f64; 8]>,
+    r2: f64,
+}
+
+impl<'a> SortedCost<'a> {
+    /// From `q` sorted ascending and the matching `rest` values.
+    pub fn new(q: &'a [f64], rest: &[f64]) -> SortedCost<'a> {
+        let mut prefix = Vec::with_capacity(q.len() + 1);
+        let mut acc = [0.0f64; 8];
+        prefix.push(acc);
+        for (&q, &r) in q.iter().zip(rest) {
+            let q2 = q * q;
+            let terms = [r, r * q, r * q2, 1.0, q, q2, q2 * q, q2 * q2];
+            for (a, t) in acc.iter_mut().zip(terms) {
+                *a += t;
+            }
+            prefix.push(acc);
+        }
+        SortedCost {
+            q,
+            prefix,
+            r2: rest.iter().map(|r| r * r).sum(),
+        }
+    }
+
+    /// The cost at `A = a`, `B = b` (`a > −1`).
+    pub fn eval(&self, a: f64, b: f64) -> f64 {
+        let s = 1.0 + a;
+        let k = self.q.partition_point(|&q| q < s);
+        let [r0, r1, r2, p0, p1, p2, p3, p4] = self.prefix[k];
+        let t = 1.0 / s;
+        let ru2 = r0 - t * (2.0 * r1 - t * r2);
+        let u4 = p0 - t * (4.0 * p1 - t * (6.0 * p2 - t * (4.0 * p3 - t * p4)));
+        let b2 = b * b;
+        self.r2 + 2.0 * b2 * ru2 + b2 * b2 * u4.max(0.0)
     }
 }
 
@@ -152,15 +210,10 @@ pub fn optimise_faithful(
                 sums[hood.sample[k] as usize] - blob_term(hood.rho2[k], blob.a, blob.b) - threshold
             }));
             let clamp = |x: [f64; 2]| [x[0].clamp(cfg.a_min, cfg.a_max), x[1].abs()];
+            let sorted = SortedCost::new(q, &rest);
             let cost = |x: [f64; 2]| {
                 let [a, b] = clamp(x);
-                q.iter()
-                    .zip(&rest)
-                    .map(|(&q, &r)| {
-                        let f = r + blob_term(q, a, b);
-                        f * f
-                    })
-                    .sum::<f64>()
+                sorted.eval(a, b)
             };
             let [a, b] = clamp(nelder_mead(
                 cost,
@@ -244,6 +297,28 @@ pub fn nelder_mead(
 mod tests {
     use super::*;
     use glam::DQuat;
+
+    #[test]
+    fn sorted_cost_matches_the_direct_sum() {
+        let mut q: Vec<f64> = (0..3000)
+            .map(|i| (i as f64 * 0.618_034).fract() * 5.0)
+            .collect();
+        q.sort_by(f64::total_cmp);
+        let rest: Vec<f64> = (0..3000).map(|i| (i as f64 * 0.37).sin() - 1.0).collect();
+        let cost = SortedCost::new(&q, &rest);
+        for (a, b) in [(0.05, 0.3), (1.0, 2.0), (2.7, 1.1), (4.0, 0.0), (0.5, 3.5)] {
+            let direct: f64 = q
+                .iter()
+                .zip(&rest)
+                .map(|(&q, &r)| (r + blob_term(q, a, b)).powi(2))
+                .sum();
+            let fast = cost.eval(a, b);
+            assert!(
+                (fast - direct).abs() < 1e-9 * direct.abs().max(1.0),
+                "{a} {b}: {fast} vs {direct}"
+            );
+        }
+    }
 
     #[test]
     fn nelder_mead_finds_a_quadratic_minimum() {

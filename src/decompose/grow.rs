@@ -9,6 +9,20 @@
 //! obstacles can be, so "the first obstacle touched" is a minimum of a per-obstacle ratio, and
 //! every obstacle with ratio below `t` lies inside `Q(t) < 0`: the bounding box of `Q(t)` is an
 //! exact pruning region for [`ObstacleSet::first_touch`].
+//!
+//! Contact margin: with point obstacles the first contact `q` (and `r`) is not the tangency
+//! point of a smooth surface; the samples around it lie on the grown surface up to tiny
+//! differences, with either sign of distance to the tangent plane, so the next stage stops at
+//! once on a near-tie (observed: `α ≈ 0.006` at the pole of a 2:1:0.5 ellipsoid that should
+//! reach `α = 3`). Each stage therefore starts from its predecessor pulled in by a small
+//! clearance `μ` at the contact (`μ ≪ ε`; the contacts remain on the obstacle layer's scale).
+//!
+//! Thin results: the perpendicular stage grows along the plane normal until an obstacle is
+//! touched, and an ellipsoid thinner than the gaps between samples can grow through the surface
+//! between them (observed on the horse: needles 0.003·D thick, 0.06·D long, half outside the
+//! mesh). Its result is kept only when its smallest semi-axis is at least
+//! `min_stage3_axis` (1.5 mean sample spacings in the pipeline); ~2 % of seeds fall back to the
+//! wedge stage, which showed no such leaks.
 
 use glam::DVec3;
 
@@ -28,6 +42,15 @@ pub struct GrowLimits {
     pub min_radius: f64,
     /// Stop after stage 1 (spheres).
     pub sphere_only: bool,
+    /// Clearance kept from the contacts `q` (sphere shrunk by it before the wedge stage) and
+    /// `r` (wedge backed off by it before the perpendicular stage).
+    pub margin: f64,
+    /// A perpendicular-stage result thinner than this (smallest semi-axis) is rejected in
+    /// favour of the wedge stage: it can slip between samples (module notes).
+    pub min_stage3_axis: f64,
+    /// Use the touching obstacle's own smooth normal as `n_q` instead of the sphere's normal
+    /// `(q − c)/ρ` there (the design's choice, used by the pipeline); see [`grow_seed`].
+    pub surface_normal_at_q: bool,
 }
 
 /// A grown candidate.
@@ -53,6 +76,13 @@ fn world_bounds(q: &Quadric, p: DVec3, pad: f64) -> Option<Aabb> {
 
 /// Grow from seed `p` (outward unit normal `n`) against `obstacles`; `order` is the chunk order
 /// from [`ObstacleSet::chunks_by_distance`] for `p`.
+///
+/// `n_q` is the sphere's normal at `q` (DESIGN.md), or with `surface_normal_at_q` the sample's
+/// own smooth normal. Either way the family passes through `p` and `q`, stays tangent to `P_p`
+/// (so `a > 0` is outside), `a < 0 < b` has `Q' ≥ Q1 ≥ 0`, and the ellipticity limit is
+/// `2/(1 + n_p·n_q)`: every member is an ellipsoid free of obstacles. (Before the contact
+/// margin existed, the sample normal helped a little against near-ties; with the margin both
+/// recover a 2:1:0.5 ellipsoid to ~2 %.)
 pub fn grow_seed(
     obstacles: &ObstacleSet,
     order: &[(f64, u32)],
@@ -104,17 +134,24 @@ pub fn grow_seed(
         return Some(capped(grown, p, limits));
     }
 
-    // Stage 2: Q' = Q1 + α·Q2, Q2 = −a·b with a = n_p·x, b = n_q·(x − q) (local coordinates).
-    let c = -rho * n;
-    let q = obstacles.position(q_idx) - p;
-    let Some(nq) = ((q - c) / rho).try_normalize() else {
+    // Stage 2: Q' = Q1 + α·Q2, Q2 = −a·b with a = n_p·x, b = n_q·(x − q) (local coordinates),
+    // on the sphere shrunk by the margin (module notes), still tangent at p.
+    let rho2 = rho - limits.margin.min(0.25 * rho);
+    let c = -rho2 * n;
+    let Some(sphere_nq) = (obstacles.position(q_idx) - p - c).try_normalize() else {
         return Some(capped(grown, p, limits));
     };
-    let q1 = Quadric::sphere(c, rho);
+    let q = c + rho2 * sphere_nq;
+    let nq = if limits.surface_normal_at_q {
+        obstacles.normal(q_idx)
+    } else {
+        sphere_nq
+    };
+    let q1 = Quadric::sphere(c, rho2);
     let q2 = Quadric::neg_plane_product(n, 0.0, nq, nq.dot(q));
     let nq_q = nq.dot(q);
     let alpha_cap =
-        (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq))).min(4.0 * (limits.max_semi_axis / rho).powi(2));
+        (ALPHA_SAFETY * 2.0 / (1.0 + n.dot(nq))).min(4.0 * (limits.max_semi_axis / rho2).powi(2));
     let (alpha, r_idx) = obstacles.first_touch(
         order,
         p,
@@ -125,13 +162,28 @@ pub fn grow_seed(
             let a = x * n.x + y * n.y + z * n.z;
             let b = x * nq.x + y * nq.y + z * nq.z - nq_q;
             if a < 0.0 && b < 0.0 {
-                let s = x * x + y * y + z * z + 2.0 * rho * a; // Q1 = |x − c|² − ρ²
+                let s = x * x + y * y + z * z + 2.0 * rho2 * a; // Q1 = |x − c|² − ρ²
                 s.max(0.0) / (a * b)
             } else {
                 f64::INFINITY
             }
         },
     );
+    // Back off α so that Q' passes about one margin inside r.
+    let alpha = match r_idx {
+        Some(i) => {
+            let r = obstacles.position(i) - p;
+            let ab = (n.dot(r) * (nq.dot(r) - nq_q)).abs();
+            let grad = 2.0 * (q1.add_scaled(alpha, &q2).matrix() * r + q1.add_scaled(alpha, &q2).b);
+            let back = limits.margin * grad.length() / ab;
+            if back.is_finite() {
+                (alpha - back).max(0.0)
+            } else {
+                alpha
+            }
+        }
+        None => alpha,
+    };
     let qp = q1.add_scaled(alpha, &q2);
     match qp.ellipsoid() {
         Some(e) => {
@@ -172,8 +224,10 @@ pub fn grow_seed(
         },
     );
     if let Some(e) = qp.add_scaled(beta, &q3).ellipsoid() {
-        grown.ellipsoid = e;
-        grown.stage = 3;
+        if e.semi_axes.min_element() >= limits.min_stage3_axis {
+            grown.ellipsoid = e;
+            grown.stage = 3;
+        }
     }
     Some(capped(grown, p, limits))
 }

@@ -15,6 +15,9 @@
 //! faces around a seed vertex (which dip below its tangent plane linearly with distance) from
 //! collapsing the inscribed sphere to a needle.
 
+// `!(x > 0.0)` is the intended NaN-rejecting test throughout the decomposition.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -36,6 +39,14 @@ use obstacles::ObstacleSet;
 
 /// Semi-axis cap as a fraction of `D` (open meshes would otherwise grow without bound).
 pub const MAX_SEMI_AXIS: f64 = 0.5;
+
+/// Clearance kept from each stage's contact before the next stage grows, fraction of `D`
+/// (see [`grow`]).
+pub const CONTACT_MARGIN: f64 = 5e-4;
+
+/// Smallest semi-axis of an accepted perpendicular-stage ellipsoid, in mean sample spacings
+/// `√(area / samples)` (see [`grow`]).
+pub const STAGE3_MIN_AXIS: f64 = 1.5;
 
 /// Seeds whose inscribed sphere is below this fraction of `D` are dropped.
 pub const MIN_SPHERE_RADIUS: f64 = 1e-4;
@@ -156,7 +167,7 @@ pub fn grow_candidates(
     samples: &SurfaceSamples,
 ) -> Vec<Candidate> {
     let diagonal = mesh.bounds().diagonal();
-    let obstacles = ObstacleSet::new(&obstacles(cfg, samples, diagonal));
+    let obstacles = ObstacleSet::new(&obstacles(cfg, samples, diagonal), &samples.normals);
     if obstacles.is_empty() || !(diagonal > 0.0) {
         return Vec::new();
     }
@@ -167,6 +178,9 @@ pub fn grow_candidates(
         max_semi_axis: MAX_SEMI_AXIS * diagonal,
         min_radius: MIN_SPHERE_RADIUS * diagonal,
         sphere_only: cfg.primitive == Primitive::Sphere,
+        surface_normal_at_q: false,
+        margin: CONTACT_MARGIN * diagonal,
+        min_stage3_axis: STAGE3_MIN_AXIS * (mesh.area() / obstacles.len() as f64).sqrt(),
     };
     seeds
         .par_iter()

@@ -30,6 +30,7 @@ pub struct ObstacleSet {
     xs: Vec<f64>,
     ys: Vec<f64>,
     zs: Vec<f64>,
+    normals: Vec<DVec3>,
     chunks: Vec<Chunk>,
 }
 
@@ -43,8 +44,10 @@ fn spread_bits(v: u32) -> u64 {
 }
 
 impl ObstacleSet {
-    /// Sort `points` along a Morton curve (ties by input order) and cut them into chunks.
-    pub fn new(points: &[DVec3]) -> ObstacleSet {
+    /// Sort `points` (with their unit `normals`, same length) along a Morton curve (ties by
+    /// input order) and cut them into chunks.
+    pub fn new(points: &[DVec3], normals: &[DVec3]) -> ObstacleSet {
+        assert_eq!(points.len(), normals.len(), "one normal per obstacle");
         let bounds = Aabb::from_points(points);
         let size = bounds.size().max(DVec3::splat(1e-300));
         let cells = f64::from((1u32 << MORTON_BITS) - 1);
@@ -64,6 +67,7 @@ impl ObstacleSet {
             keyed.iter().map(|&(_, i)| f(&points[i as usize])).collect()
         };
         let (xs, ys, zs) = (pick(|p| p.x), pick(|p| p.y), pick(|p| p.z));
+        let normals = keyed.iter().map(|&(_, i)| normals[i as usize]).collect();
         let chunks = (0..keyed.len())
             .step_by(CHUNK)
             .map(|start| {
@@ -77,7 +81,13 @@ impl ObstacleSet {
                 }
             })
             .collect();
-        ObstacleSet { xs, ys, zs, chunks }
+        ObstacleSet {
+            xs,
+            ys,
+            zs,
+            normals,
+            chunks,
+        }
     }
 
     /// Number of obstacles.
@@ -94,6 +104,11 @@ impl ObstacleSet {
     pub fn position(&self, i: u32) -> DVec3 {
         let i = i as usize;
         DVec3::new(self.xs[i], self.ys[i], self.zs[i])
+    }
+
+    /// Unit normal of (sorted) obstacle `i` (the smooth normal of its sample).
+    pub fn normal(&self, i: u32) -> DVec3 {
+        self.normals[i as usize]
     }
 
     /// Fill `order` with every chunk index, nearest chunk box to `p` first (ties by index).
@@ -168,7 +183,7 @@ mod tests {
                 )
             })
             .collect();
-        let set = ObstacleSet::new(&pts);
+        let set = ObstacleSet::new(&pts, &vec![DVec3::Z; pts.len()]);
         assert_eq!(set.len(), pts.len());
         let mut order = Vec::new();
         for (t, &o) in pts.iter().step_by(500).enumerate() {

@@ -93,7 +93,7 @@ impl Quadric {
         let [xx, yy, _, xy, _, _] = self.a;
         let det = m.determinant();
         // Sylvester's criterion: positive definite iff all leading minors are positive.
-        if !(xx > 0.0 && xx * yy - xy * xy > 0.0 && det > 0.0) || !det.is_finite() {
+        if !(xx > 0.0 && xx * yy - xy * xy > 0.0 && det > 0.0 && det.is_finite()) {
             return None;
         }
         let inv = m.inverse();

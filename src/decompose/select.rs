@@ -224,3 +224,77 @@ pub fn select_greedy(cfg: &DecomposeConfig, bounds: &Aabb, candidates: &[Candida
     }
     order
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    fn candidate(center: DVec3, semi_axes: DVec3, weight: f64) -> Candidate {
+        Candidate {
+            ellipsoid: Ellipsoid {
+                center,
+                rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 1.1, -0.4),
+                semi_axes,
+            },
+            seed_vertex: 0,
+            seed: (center, DVec3::Z),
+            sphere_radius: semi_axes.min_element(),
+            weight,
+            stage: 3,
+        }
+    }
+
+    #[test]
+    fn runs_match_brute_force_rasterisation() {
+        let bounds = Aabb {
+            min: DVec3::new(-1.0, -0.7, -0.3),
+            max: DVec3::new(1.3, 0.9, 0.5),
+        };
+        let grid = VoxelGrid::new(&bounds, 40);
+        for c in [
+            candidate(DVec3::new(0.1, 0.2, 0.0), DVec3::new(0.9, 0.3, 0.2), 1.0),
+            // Sticks out of the grid on several sides.
+            candidate(DVec3::new(1.2, -0.6, 0.4), DVec3::new(0.5, 0.6, 0.7), 1.0),
+        ] {
+            let mut runs = Vec::new();
+            grid.rasterise(&c.ellipsoid, &mut runs);
+            let from_runs: Vec<u32> = runs.iter().flat_map(|&(s, n)| s..s + n).collect();
+            let mut brute = Vec::new();
+            for k in 0..grid.dims[2] {
+                for j in 0..grid.dims[1] {
+                    for i in 0..grid.dims[0] {
+                        if c.ellipsoid.contains(grid.centre(i, j, k)) {
+                            brute.push(((k * grid.dims[1] + j) * grid.dims[0] + i) as u32);
+                        }
+                    }
+                }
+            }
+            assert!(!brute.is_empty());
+            assert_eq!(from_runs, brute);
+        }
+    }
+
+    #[test]
+    fn greedy_order_weights_and_redundancy() {
+        let bounds = Aabb {
+            min: DVec3::splat(-2.0),
+            max: DVec3::splat(2.0),
+        };
+        let cands = vec![
+            candidate(DVec3::new(-1.0, 0.0, 0.0), DVec3::splat(0.5), 1.0), // small
+            candidate(DVec3::new(1.0, 0.0, 0.0), DVec3::splat(0.8), 1.0),  // big
+            candidate(DVec3::new(1.0, 0.0, 0.0), DVec3::splat(0.7), 4.0),  // inside big, heavy
+            candidate(DVec3::new(-1.0, 0.0, 0.0), DVec3::splat(0.5), 1.0), // duplicate of 0
+        ];
+        let cfg = DecomposeConfig {
+            voxels: 60,
+            max_selected: 10,
+            ..DecomposeConfig::default()
+        };
+        let order = select_greedy(&cfg, &bounds, &cands);
+        // Heavy candidate first (4 × 0.343 > 0.512), then the big one's shell, then the small
+        // one; the duplicate adds nothing (tie broken by index: 0 before 3).
+        assert_eq!(order, vec![2, 1, 0]);
+    }
+}

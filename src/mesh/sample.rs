@@ -5,6 +5,9 @@
 //! cotangent-Laplacian vertex estimate). Deterministic at any thread count: sample `i` draws
 //! from its own generator `item_rng(seed, Stream::Samples, i)`.
 
+// `!(x > 0.0)` is the intended NaN-rejecting test here.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::DVec3;
 use rand::RngExt;
 use rayon::prelude::*;

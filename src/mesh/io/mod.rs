@@ -1,7 +1,8 @@
 //! Mesh file formats: OBJ, PLY (ASCII, binary little/big endian), OFF, STL (ASCII, binary).
 //!
 //! In: a path (format chosen by extension) or a byte slice plus a [`MeshFormat`].
-//! Out: an unvalidated [`Mesh`] (polygons fan-triangulated, degenerate triangles dropped) or a
+//! Out: an indexed [`Mesh`] not yet checked for area or orientation (polygons fan-triangulated,
+//! bit-identical positions welded, degenerate triangles and unreferenced vertices dropped) or a
 //! [`MeshError`] naming the file and the 1-based line (text) or element number (binary).
 //!
 //! Readers take the whole file as one byte slice, never panic on any input, and never allocate
@@ -23,8 +24,7 @@ use super::{Mesh, MeshError};
 
 pub use write::write_mesh;
 
-pub(crate) use build::MeshBuilder;
-use build::clean_up;
+use build::{MeshBuilder, clean_up};
 
 /// The mesh file formats nephele reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -59,8 +59,9 @@ impl MeshFormat {
     }
 }
 
-/// Read a mesh, choosing the format by extension (case-insensitive). Polygons are fan-triangulated.
-/// The result is not yet validated or oriented: [`super::load`] does that.
+/// Read a mesh, choosing the format by extension (case-insensitive); see [`parse_mesh_bytes`]
+/// for what the result guarantees. It is not yet validated for area or oriented:
+/// [`super::load`] does that.
 pub fn read_mesh(path: &Path) -> Result<Mesh, MeshError> {
     let format = MeshFormat::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|source| MeshError::Io {

@@ -229,8 +229,10 @@ impl Source for AsciiSource<'_> {
             .next_token()
             .ok_or("the file ends inside this record (missing values)")?;
         if ty.is_integer() {
-            let v = parse_i64(t)?;
-            Ok(v as f64)
+            // Some writers print integer properties as "3.0": accept integral decimals.
+            parse_i64(t)
+                .map(|v| v as f64)
+                .or_else(|e| parse_f64(t).ok().filter(|v| v.fract() == 0.0).ok_or(e))
         } else {
             parse_f64(t)
         }

@@ -47,7 +47,7 @@ fn is_ascii(bytes: &[u8]) -> bool {
         .is_some_and(|t| t == b"facet" || t == b"endsolid")
 }
 
-/// Add corner `p` (f32 coordinates) as a new vertex; [`super::clean_up`] welds duplicates.
+/// Add corner `p` (f32 coordinates) as a new vertex; `clean_up` welds duplicates.
 fn corner(builder: &mut MeshBuilder, p: [f32; 3]) -> Result<u32, String> {
     let i = u32::try_from(builder.vertex_count()).map_err(|_| "more than 2^32-1 corners")?;
     builder.push_vertex(p.map(f64::from))?;
