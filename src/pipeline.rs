@@ -63,7 +63,8 @@ impl Default for FitConfig {
             voxels: d.voxels,
             curvature_weight: d.curvature_weight,
             initial_a: 1.0,
-            optimisation: Optimisation::Faithful(FaithfulConfig::default()),
+            // Scenes and previews want every blob alive; `nephele fit` defaults to faithful.
+            optimisation: Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),
             seed: 1,
         }
     }

@@ -314,7 +314,11 @@ fn bunny_fit_selects_300_with_large_spheres() {
         return;
     }
     let loaded = nephele::mesh::load(path).unwrap();
-    let out = nephele::pipeline::fit(&nephele::pipeline::FitConfig::default(), &loaded);
+    let cfg = nephele::pipeline::FitConfig {
+        optimisation: nephele::pipeline::Optimisation::Faithful(Default::default()),
+        ..Default::default()
+    };
+    let out = nephele::pipeline::fit(&cfg, &loaded);
     let s = &out.stats;
     eprintln!("{s:?}\n{}", out.timings.report());
     assert_eq!(s.selected, 300);

@@ -203,7 +203,8 @@ fn recoverable_meshes_warn_and_fit() {
                 "40",
                 "--samples",
                 "2000",
-                "--faithful",
+                "--optimiser",
+                "faithful",
             ])
             .current_dir(&dir)
             .output()

@@ -31,13 +31,15 @@ pub struct Args {
     /// Obstacle shift along the normal.
     #[arg(long, value_enum, default_value_t = ShiftArg::Outward)]
     pub shift: ShiftArg,
-    /// Skip the optimisation of A and B (the "before optimisation" model).
-    #[arg(long)]
-    pub no_optimise: bool,
-    /// Paper-faithful optimisation only (Nelder–Mead on A and B, centres and shapes fixed),
-    /// instead of the default full optimisation of every blob parameter.
-    #[arg(long, conflicts_with = "no_optimise")]
-    pub faithful: bool,
+    /// Blob optimisation after decomposition: `faithful` (the paper: Nelder–Mead on A and B,
+    /// centres and shapes fixed; fast), `full` (beyond the paper: every blob parameter by block
+    /// Levenberg–Marquardt on a geometric residual with sign constraints; about 3× lower mean
+    /// error, every blob alive, ~10 s on 300 blobs) or `none` (the "before optimisation" model).
+    #[arg(long, value_enum, default_value_t = OptimiserArg::Faithful)]
+    pub optimiser: OptimiserArg,
+    /// Shorthand for `--optimiser full`.
+    #[arg(long, conflicts_with = "optimiser")]
+    pub full: bool,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -53,6 +55,17 @@ pub enum PrimitiveArg {
     Ellipsoid,
     /// Inscribed spheres only (the spherical baseline).
     Sphere,
+}
+
+/// `--optimiser`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OptimiserArg {
+    /// The paper's per-blob Nelder–Mead on (A, B).
+    Faithful,
+    /// Every blob parameter, geometric residual, sign constraints.
+    Full,
+    /// No optimisation.
+    None,
 }
 
 /// `--shift`.
@@ -85,12 +98,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ShiftArg::Inward => ObstacleShift::Inward,
             ShiftArg::None => ObstacleShift::None,
         },
-        optimisation: if args.no_optimise {
-            Optimisation::None
-        } else if args.faithful {
-            Optimisation::Faithful(FaithfulConfig::default())
-        } else {
-            Optimisation::Full(FaithfulConfig::default(), FullConfig::default())
+        optimisation: match (args.full, args.optimiser) {
+            (true, _) | (_, OptimiserArg::Full) => {
+                Optimisation::Full(FaithfulConfig::default(), FullConfig::default())
+            }
+            (_, OptimiserArg::Faithful) => Optimisation::Faithful(FaithfulConfig::default()),
+            (_, OptimiserArg::None) => Optimisation::None,
         },
         seed: args.seed,
         ..FitConfig::default()
