@@ -59,10 +59,7 @@ struct Numbers {
 
 impl Row {
     fn line(&self) -> String {
-        let head = format!(
-            "{:<10} {:<9} {:>6}",
-            self.model, self.primitive, self.blobs
-        );
+        let head = format!("{:<10} {:<9} {:>6}", self.model, self.primitive, self.blobs);
         match &self.result {
             Ok(n) => format!(
                 "{head} {:>6} {:>9} {:>9} {:>8.4} {:>8.4} {:>8.2} {:>8.2}",
@@ -190,7 +187,9 @@ fn fit_and_evaluate_every_model() {
         }
     }
     let _ = std::panic::take_hook();
-    println!("\nbytes = lossless codec, q.bytes = quantized codec; errors in % of the mesh's diagonal (Metro, symmetric mean = larger one-sided mean, max = Hausdorff); polygonization resolution {resolution}");
+    println!(
+        "\nbytes = lossless codec, q.bytes = quantized codec; errors in % of the mesh's diagonal (Metro, symmetric mean = larger one-sided mean, max = Hausdorff); polygonization resolution {resolution}"
+    );
     println!("{}", header());
     for r in &rows {
         println!("{}", r.line());

@@ -79,7 +79,12 @@ fn lossless_round_trip_is_byte_identical_and_field_exact_to_f32() {
             (back.source.vertices, back.source.faces),
             (m.source.vertices, m.source.faces)
         );
-        assert!((back.source.bounds.min - m.source.bounds.min).abs().max_element() < 1e-5);
+        assert!(
+            (back.source.bounds.min - m.source.bounds.min)
+                .abs()
+                .max_element()
+                < 1e-5
+        );
         // The field: every stored number is an f32 rounding (relative 6e-8), so values of
         // F (of order 1..10 near the surface) agree to ~1e-5 absolute.
         let (f, g) = (m.field(), back.field());
@@ -113,8 +118,14 @@ fn sizes_per_blob() {
     assert_eq!(quantized.len(), header + 36 + 50 * QUANTIZED_BLOB_BYTES);
     assert!(QUANTIZED_BLOB_BYTES < 20);
     let s = model(50, true);
-    assert_eq!(codec::encode(&s, Encoding::Lossless).len(), header + 50 * 20);
-    assert_eq!(codec::encode(&s, Encoding::Quantized).len(), header + 36 + 50 * 10);
+    assert_eq!(
+        codec::encode(&s, Encoding::Lossless).len(),
+        header + 50 * 20
+    );
+    assert_eq!(
+        codec::encode(&s, Encoding::Quantized).len(),
+        header + 36 + 50 * 10
+    );
 }
 
 #[test]
@@ -159,7 +170,9 @@ fn every_truncation_is_a_located_error() {
     for enc in [Encoding::Lossless, Encoding::Quantized] {
         let bytes = codec::encode(&model(6, false), enc);
         for len in 0..bytes.len() {
-            let e = codec::decode(path(), &bytes[..len]).unwrap_err().to_string();
+            let e = codec::decode(path(), &bytes[..len])
+                .unwrap_err()
+                .to_string();
             assert!(e.starts_with("test.blob: "), "{e}");
             if len >= 4 {
                 assert!(e.contains("byte offset"), "{e}");
@@ -193,7 +206,10 @@ fn future_version_corrupt_header_and_huge_count_are_errors() {
     let mut e = bytes.clone();
     e[5] = 7;
     let msg = codec::decode(path(), &e).unwrap_err().to_string();
-    assert!(msg.contains("byte offset 5") && msg.contains("encoding"), "{msg}");
+    assert!(
+        msg.contains("byte offset 5") && msg.contains("encoding"),
+        "{msg}"
+    );
     let mut m = bytes.clone();
     m[0] = b'X';
     assert!(codec::decode(path(), &m).is_err());

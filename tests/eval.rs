@@ -10,7 +10,11 @@ use eval_support::icosphere;
 
 fn scaled(m: &Mesh, k: f64, about: DVec3) -> Mesh {
     Mesh {
-        positions: m.positions.iter().map(|&p| about + (p - about) * k).collect(),
+        positions: m
+            .positions
+            .iter()
+            .map(|&p| about + (p - about) * k)
+            .collect(),
         triangles: m.triangles.clone(),
     }
 }
@@ -175,11 +179,18 @@ fn model_evaluation_against_a_fine_polygonization() {
     let r = nephele::eval::evaluate_model(&mesh, &m, &quick());
     let d = mesh.bounds().diagonal();
     assert!((r.mesh.diagonal - d).abs() < 1e-12);
-    assert_eq!(r.mesh.bytes, 12 * (mesh.positions.len() + mesh.triangles.len()));
+    assert_eq!(
+        r.mesh.bytes,
+        12 * (mesh.positions.len() + mesh.triangles.len())
+    );
     assert_eq!((r.model.blobs, r.model.live), (40, 40));
     assert!(r.polygonization.faces > 1000);
     // Cells are ~0.7 % of D at resolution 100 and the thinnest blobs ~1.5 % of D across.
-    assert!(r.error.hausdorff_pct < 1.5 && r.error.hausdorff_pct > 1e-4, "{:?}", r.error);
+    assert!(
+        r.error.hausdorff_pct < 1.5 && r.error.hausdorff_pct > 1e-4,
+        "{:?}",
+        r.error
+    );
     assert!(r.error.mean_pct() < 0.1, "{:?}", r.error);
     let c = &r.codec;
     assert!(c.quantized_bytes < c.lossless_bytes && c.lossless_bytes < 45 * 40 + 200);
@@ -187,11 +198,17 @@ fn model_evaluation_against_a_fine_polygonization() {
     let extra = c.quantized_extra.expect("measured");
     eprintln!("{}", r.report());
     assert!(extra.hausdorff_pct < 0.1, "{extra:?}");
-    assert!((extra.diagonal - d).abs() < 1e-12, "extra error is relative to the mesh's D");
+    assert!(
+        (extra.diagonal - d).abs() < 1e-12,
+        "extra error is relative to the mesh's D"
+    );
     let q = c.quantized_error.expect("measured");
     assert!((q.hausdorff_pct - r.error.hausdorff_pct).abs() < 0.1);
     let text = r.report();
-    assert!(text.contains("Hausdorff") && text.contains("quantized"), "{text}");
+    assert!(
+        text.contains("Hausdorff") && text.contains("quantized"),
+        "{text}"
+    );
     let names: Vec<&str> = r.timings.iter().map(|t| t.0.as_str()).collect();
     assert_eq!(names[..3], ["polygonize", "metro", "encode"]);
 }
@@ -219,13 +236,21 @@ fn cli_eval_prints_json_and_text() {
     assert_eq!(v["model"]["blobs"], 24);
     assert_eq!(v["model"]["primitive"], "Ellipsoid");
     assert!(v["error"]["hausdorff_pct"].as_f64().unwrap() < 3.0);
-    assert!(v["codec"]["quantized_extra"]["hausdorff_pct"].as_f64().unwrap() < 0.1);
+    assert!(
+        v["codec"]["quantized_extra"]["hausdorff_pct"]
+            .as_f64()
+            .unwrap()
+            < 0.1
+    );
     assert!(v["timings"].as_array().unwrap().len() >= 5);
     assert!(String::from_utf8_lossy(&out.stderr).contains("total"));
     let out = run(&["--no-codec-error"]);
     assert!(out.status.success(), "{out:?}");
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("mesh -> model") && text.contains("reduction"), "{text}");
+    assert!(
+        text.contains("mesh -> model") && text.contains("reduction"),
+        "{text}"
+    );
     // A missing model is a clear error naming the file.
     let out = std::process::Command::new(exe)
         .arg("eval")

@@ -192,7 +192,10 @@ fn clamp_u32(n: usize) -> u32 {
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<BlobModel, ModelError> {
     let mut r = Reader::new(path, bytes);
     if !is_encoded(bytes) {
-        return Err(r.invalid(0, "not an encoded blob model (missing the 'NPHB' magic number)"));
+        return Err(r.invalid(
+            0,
+            "not an encoded blob model (missing the 'NPHB' magic number)",
+        ));
     }
     r.skip(MAGIC.len());
     let version = r.u8("version")?;
@@ -320,7 +323,10 @@ mod tests {
     fn canonical_a_recovers_an_unoptimised_blob() {
         for a in [0.01, 0.5, 1.0, 3.0, 50.0] {
             let b = (1.0 + a) / a;
-            assert!((canonical_a(b, 1.0) - a).abs() < 1e-9 * a.max(1.0), "a = {a}");
+            assert!(
+                (canonical_a(b, 1.0) - a).abs() < 1e-9 * a.max(1.0),
+                "a = {a}"
+            );
         }
         assert_eq!(canonical_a(0.5, 1.0), 1.0);
         assert_eq!(canonical_a(0.0, 1.0), 1.0);

@@ -144,9 +144,8 @@ pub fn evaluate_model(mesh: &Mesh, model: &BlobModel, cfg: &EvalConfig) -> Model
         && let Ok(q) = codec::decode(Path::new("<quantized>"), &quantized)
     {
         let q_surface = timings.stage("polygonize q", || polygonize(&q.field(), cfg.resolution));
-        quantized_extra = Some(timings.stage("metro q extra", || {
-            compare(&surface, &q_surface, &metro)
-        }));
+        quantized_extra =
+            Some(timings.stage("metro q extra", || compare(&surface, &q_surface, &metro)));
         quantized_error = Some(timings.stage("metro q", || compare(mesh, &q_surface, &metro)));
     }
     let bytes = mesh_bytes(mesh);

@@ -115,4 +115,3 @@ pub fn model(n: usize, sphere: bool) -> BlobModel {
         blobs,
     }
 }
-

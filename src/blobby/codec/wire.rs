@@ -122,7 +122,11 @@ impl<'a> Reader<'a> {
         Ok(f32::from_le_bytes(self.take(what)?) as f64)
     }
     pub fn vec3(&mut self, what: &str) -> Result<DVec3, ModelError> {
-        Ok(DVec3::new(self.f32(what)?, self.f32(what)?, self.f32(what)?))
+        Ok(DVec3::new(
+            self.f32(what)?,
+            self.f32(what)?,
+            self.f32(what)?,
+        ))
     }
 
     /// A u16-length-prefixed UTF-8 string.
@@ -148,7 +152,7 @@ impl<'a> Reader<'a> {
     /// incomplete blob, extra bytes are refused.
     pub fn expect_blobs(&self, count: usize, size: usize) -> Result<(), ModelError> {
         let remaining = self.bytes.len() - self.pos;
-        let needed = count.checked_mul(size).unwrap_or(usize::MAX);
+        let needed = count.saturating_mul(size);
         if remaining < needed {
             let complete = remaining / size;
             return Err(self.invalid(
