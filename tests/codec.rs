@@ -116,7 +116,7 @@ fn sizes_per_blob() {
     let header = lossless.len() - 50 * 40;
     assert_eq!(header, 58 + m.source.mesh.len());
     assert_eq!(quantized.len(), header + 36 + 50 * QUANTIZED_BLOB_BYTES);
-    assert!(QUANTIZED_BLOB_BYTES < 20);
+    const { assert!(QUANTIZED_BLOB_BYTES < 20) };
     let s = model(50, true);
     assert_eq!(
         codec::encode(&s, Encoding::Lossless).len(),
