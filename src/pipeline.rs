@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::model_file::MODEL_VERSION;
-use crate::blobby::optimise::{FullConfig, optimise_full};
+use crate::blobby::optimise::{FullConfig, far_field_points, optimise_full};
 use crate::blobby::{Blob, BlobField, BlobModel, SourceInfo, THRESHOLD};
 use crate::decompose::{self, DecomposeConfig, ObstacleShift, Primitive};
 use crate::mesh::LoadedMesh;
@@ -132,7 +132,15 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
         Optimisation::Faithful(f) => optimise_faithful(f, &mut blobs, points, THRESHOLD),
         Optimisation::Full(f, full) => {
             let (before, _) = optimise_faithful(f, &mut blobs, points, THRESHOLD);
-            optimise_full(full, &mut blobs, &samples, bounds.diagonal(), THRESHOLD);
+            let far = far_field_points(mesh, 40);
+            optimise_full(
+                full,
+                &mut blobs,
+                &samples,
+                &far,
+                bounds.diagonal(),
+                THRESHOLD,
+            );
             let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
             (before, after)
         }

@@ -12,8 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fixtures::{
-    Ply, cube_obj, cube_off, cube_positions, cube_triangles, stl_ascii, stl_binary,
-    temp_dir,
+    Ply, cube_obj, cube_off, cube_positions, cube_triangles, stl_ascii, stl_binary, temp_dir,
 };
 use nephele::mesh::io::{MeshFormat, parse_mesh_bytes, read_mesh, write_mesh};
 use nephele::mesh::{Mesh, MeshError, load};
@@ -60,7 +59,10 @@ fn every_format_reads_the_cube() {
         ("cube_le.ply", Ply::cube().binary(false)),
         ("cube_be.PLY", Ply::cube().binary(true)),
         ("cube_ascii.stl", stl_ascii(&tris).into_bytes()),
-        ("cube_binary.stl", stl_binary(&tris, tris.len() as u32, true)),
+        (
+            "cube_binary.stl",
+            stl_binary(&tris, tris.len() as u32, true),
+        ),
     ];
     for (name, bytes) in cases {
         assert_unit_cube(&file(&dir, name, &bytes));
@@ -135,33 +137,103 @@ fn bad_corpus() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
         ("empty.ply", vec![], vec!["empty"]),
         ("blank.off", text("\n  \n"), vec!["empty"]),
         ("empty.stl", vec![], vec!["empty"]),
-        ("nan.obj", text(&format!("{tri}v nan 0 0\nf 1 2 3\n")), vec![":4:", "non-finite"]),
-        ("inf.obj", text("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"), vec![":2:"]),
-        ("range.obj", text(&format!("{tri}f 1 2 9\n")), vec![":4:", "vertex 9"]),
-        ("negative.obj", text(&format!("{tri}f -1 -2 -4\n")), vec![":4:", "-4"]),
-        ("zero.obj", text(&format!("{tri}f 0 1 2\n")), vec![":4:", "index 0"]),
-        ("two.obj", text(&format!("{tri}f 1 2\n")), vec![":4:", "at least 3"]),
-        ("word.obj", text(&format!("{tri}f 1 two 3\n")), vec![":4:", "two"]),
+        (
+            "nan.obj",
+            text(&format!("{tri}v nan 0 0\nf 1 2 3\n")),
+            vec![":4:", "non-finite"],
+        ),
+        (
+            "inf.obj",
+            text("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"),
+            vec![":2:"],
+        ),
+        (
+            "range.obj",
+            text(&format!("{tri}f 1 2 9\n")),
+            vec![":4:", "vertex 9"],
+        ),
+        (
+            "negative.obj",
+            text(&format!("{tri}f -1 -2 -4\n")),
+            vec![":4:", "-4"],
+        ),
+        (
+            "zero.obj",
+            text(&format!("{tri}f 0 1 2\n")),
+            vec![":4:", "index 0"],
+        ),
+        (
+            "two.obj",
+            text(&format!("{tri}f 1 2\n")),
+            vec![":4:", "at least 3"],
+        ),
+        (
+            "word.obj",
+            text(&format!("{tri}f 1 two 3\n")),
+            vec![":4:", "two"],
+        ),
         ("short_v.obj", text("v 0 0\n"), vec![":1:", "x y z"]),
         ("nofaces.obj", text(tri), vec!["no usable triangle"]),
-        ("garbage.obj", (0..=255u8).cycle().take(3000).collect(), vec!["garbage.obj"]),
-        ("trunc.ply", cut(&ply_ascii, 12), vec!["face 6", "vertex_index"]),
+        (
+            "garbage.obj",
+            (0..=255u8).cycle().take(3000).collect(),
+            vec!["garbage.obj"],
+        ),
+        (
+            "trunc.ply",
+            cut(&ply_ascii, 12),
+            vec!["face 6", "vertex_index"],
+        ),
         (
             "word.ply",
             ply_vertex_line_replaced(&ply_ascii, 4, "1x 7 1 2 0.5 0.25 0"),
             vec!["vertex 4", "1x"],
         ),
-        ("trunc_bin.ply", cut(&ply_bin, 7), vec!["binary face 6", "truncated"]),
+        (
+            "trunc_bin.ply",
+            cut(&ply_bin, 7),
+            vec!["binary face 6", "truncated"],
+        ),
         ("garbage_bin.ply", garbage_body, vec!["garbage_bin.ply"]),
         ("claims_2g.ply", claim_2g, vec!["2147483648", "face"]),
-        ("range.ply", Ply::with_face(&[0, 1, 100]).binary(true), vec!["binary face 7", "100"]),
-        ("two.ply", Ply::with_face(&[0, 1]).binary(false), vec!["face 7", "at least 3"]),
-        ("noend.ply", text("ply\nformat ascii 1.0\nelement vertex 1\n"), vec!["end_header"]),
+        (
+            "range.ply",
+            Ply::with_face(&[0, 1, 100]).binary(true),
+            vec!["binary face 7", "100"],
+        ),
+        (
+            "two.ply",
+            Ply::with_face(&[0, 1]).binary(false),
+            vec!["face 7", "at least 3"],
+        ),
+        (
+            "noend.ply",
+            text("ply\nformat ascii 1.0\nelement vertex 1\n"),
+            vec!["end_header"],
+        ),
         ("notply.ply", text("PLY?\n"), vec![":1:", "first line"]),
-        ("format.ply", text("ply\nformat binary_middle_endian 1.0\nend_header\n"), vec![":2:"]),
-        ("noface.ply", text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n"), vec!["no 'face'"]),
-        ("lies.stl", stl_binary(&[[0, 1, 2], [1, 2, 3]], 3, false), vec!["claims 3", "hold 2"]),
-        ("claims_2g.stl", stl_binary(&[], 2_000_000_000, false), vec!["claims 2000000000"]),
+        (
+            "format.ply",
+            text("ply\nformat binary_middle_endian 1.0\nend_header\n"),
+            vec![":2:"],
+        ),
+        (
+            "noface.ply",
+            text(
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n",
+            ),
+            vec!["no 'face'"],
+        ),
+        (
+            "lies.stl",
+            stl_binary(&[[0, 1, 2], [1, 2, 3]], 3, false),
+            vec!["claims 3", "hold 2"],
+        ),
+        (
+            "claims_2g.stl",
+            stl_binary(&[], 2_000_000_000, false),
+            vec!["claims 2000000000"],
+        ),
         ("short.stl", text("nonsense!"), vec!["shorter"]),
         ("nan.stl", stl_nan, vec!["binary triangle 2", "non-finite"]),
         (
@@ -174,16 +246,36 @@ fn bad_corpus() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
             text("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nbanana 1 0 0\n"),
             vec![":5:", "banana"],
         ),
-        ("range.off", text(&format!("{off_head}3 0 1 3\n")), vec![":6:", "face 1", "out of range"]),
-        ("nan.off", text("OFF\n3 1 0\n0 0 0\n1 0 NaN\n0 1 0\n3 0 1 2\n"), vec![":4:", "vertex 2"]),
-        ("short_face.off", text(&format!("{off_head}3 0 1\n")), vec!["face"]),
-        ("two.off", text(&format!("{off_head}2 0 1\n")), vec![":6:", "at least 3"]),
+        (
+            "range.off",
+            text(&format!("{off_head}3 0 1 3\n")),
+            vec![":6:", "face 1", "out of range"],
+        ),
+        (
+            "nan.off",
+            text("OFF\n3 1 0\n0 0 0\n1 0 NaN\n0 1 0\n3 0 1 2\n"),
+            vec![":4:", "vertex 2"],
+        ),
+        (
+            "short_face.off",
+            text(&format!("{off_head}3 0 1\n")),
+            vec!["face"],
+        ),
+        (
+            "two.off",
+            text(&format!("{off_head}2 0 1\n")),
+            vec![":6:", "at least 3"],
+        ),
         (
             "trunc.off",
             text("OFF\n3 1 0\n0.000 0.000 0.000\n1.000 0.000 0.000\n"),
             vec!["ends early", "vertex 3"],
         ),
-        ("claims_2g.off", text("OFF\n2000000000 2000000000 0\n"), vec!["cannot fit"]),
+        (
+            "claims_2g.off",
+            text("OFF\n2000000000 2000000000 0\n"),
+            vec!["cannot fit"],
+        ),
         ("unknown.glb", text("glTF"), vec!["unknown mesh format"]),
     ]
 }
@@ -194,11 +286,16 @@ fn bad_inputs_fail_with_located_messages() {
     for (name, bytes, needles) in bad_corpus() {
         let path = file(&dir, name, &bytes);
         let start = Instant::now();
-        let err = read_mesh(&path)
-            .expect_err(name)
-            .to_string();
-        assert!(start.elapsed().as_secs_f64() < 0.5, "{name} took {:?}", start.elapsed());
-        assert!(err.contains(name), "{name}: message does not name the file: {err}");
+        let err = read_mesh(&path).expect_err(name).to_string();
+        assert!(
+            start.elapsed().as_secs_f64() < 0.5,
+            "{name} took {:?}",
+            start.elapsed()
+        );
+        assert!(
+            err.contains(name),
+            "{name}: message does not name the file: {err}"
+        );
         for n in needles {
             assert!(err.contains(n), "{name}: expected '{n}' in: {err}");
         }
@@ -215,7 +312,10 @@ fn readable_but_unusable_meshes_fail_in_load() {
     let p = file(&dir, "flat.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
     assert!(read_mesh(&p).is_ok());
     let e = load(p.to_str().unwrap()).unwrap_err().to_string();
-    assert!(e.contains("flat.obj") && e.contains("zero surface area"), "{e}");
+    assert!(
+        e.contains("flat.obj") && e.contains("zero surface area"),
+        "{e}"
+    );
     // All faces degenerate (repeated index): dropped, then nothing is left.
     let p = file(&dir, "degen.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 1 2\n");
     let e = read_mesh(&p).unwrap_err().to_string();
@@ -271,7 +371,12 @@ fn shared_models_match_their_readme() {
         );
         assert!(loaded.mesh.signed_volume() > 0.0, "{name}");
         let flipped = loaded.warnings.iter().any(|w| w.contains("flipped"));
-        assert_eq!(flipped, name == "horse.ply", "{name}: {:?}", loaded.warnings);
+        assert_eq!(
+            flipped,
+            name == "horse.ply",
+            "{name}: {:?}",
+            loaded.warnings
+        );
     }
 }
 
@@ -288,8 +393,12 @@ fn parse_mesh_bytes_matches_read_mesh() {
     let bytes = Ply::cube().binary(true);
     let m = parse_mesh_bytes(&bytes, MeshFormat::Ply, Path::new("mem.ply")).unwrap();
     assert_eq!(m.triangles.len(), 12);
-    let e = parse_mesh_bytes(&bytes[..bytes.len() - 1], MeshFormat::Ply, Path::new("mem.ply"))
-        .unwrap_err()
-        .to_string();
+    let e = parse_mesh_bytes(
+        &bytes[..bytes.len() - 1],
+        MeshFormat::Ply,
+        Path::new("mem.ply"),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.starts_with("mem.ply:6: binary face 6"), "{e}");
 }

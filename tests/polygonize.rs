@@ -50,9 +50,17 @@ fn single_blob_matches_its_ellipsoid() {
         .map(|&p| (e.radius_squared(p).sqrt() - 1.0).abs() * min_axis)
         .fold(0.0, f64::max);
     // Vertices sit on grid edges where the field is exact: far better than one cell.
-    assert!(worst < 0.1 * cell, "ellipsoidal radius off by {worst} (cell {cell})");
+    assert!(
+        worst < 0.1 * cell,
+        "ellipsoidal radius off by {worst} (cell {cell})"
+    );
     let rel = (mesh.signed_volume() - e.volume()).abs() / e.volume();
-    assert!(rel < 0.02, "volume {} vs {} ({rel})", mesh.signed_volume(), e.volume());
+    assert!(
+        rel < 0.02,
+        "volume {} vs {} ({rel})",
+        mesh.signed_volume(),
+        e.volume()
+    );
     mesh.validate(std::path::Path::new("single")).unwrap();
     assert!(min_relative_area(&mesh) > 0.0);
 }
@@ -70,7 +78,11 @@ fn two_overlapping_blobs_form_one_closed_surface() {
     assert_eq!(euler_characteristic(&mesh), 2);
     // Blending only adds volume to the union of the two balls.
     let union_lower = 4.0 / 3.0 * PI * 1.0;
-    assert!(mesh.signed_volume() > union_lower, "{}", mesh.signed_volume());
+    assert!(
+        mesh.signed_volume() > union_lower,
+        "{}",
+        mesh.signed_volume()
+    );
 }
 
 #[test]
@@ -85,7 +97,10 @@ fn separate_components_are_each_closed() {
     assert_closed_oriented(&mesh, "three blobs");
     assert_eq!(components(&mesh), 3);
     assert_eq!(euler_characteristic(&mesh), 6);
-    let expect: f64 = [0.5f64, 0.4, 0.6].iter().map(|r| 4.0 / 3.0 * PI * r.powi(3)).sum();
+    let expect: f64 = [0.5f64, 0.4, 0.6]
+        .iter()
+        .map(|r| 4.0 / 3.0 * PI * r.powi(3))
+        .sum();
     let rel = (mesh.signed_volume() - expect).abs() / expect;
     assert!(rel < 0.05, "volume {} vs {expect}", mesh.signed_volume());
 }
@@ -121,19 +136,33 @@ fn analytic_torus_field() {
     assert_eq!(euler_characteristic(&mesh), 0);
     let expect = 2.0 * PI * PI * big * small * small;
     let rel = (mesh.signed_volume() - expect).abs() / expect;
-    assert!(rel < 0.02, "torus volume {} vs {expect}", mesh.signed_volume());
+    assert!(
+        rel < 0.02,
+        "torus volume {} vs {expect}",
+        mesh.signed_volume()
+    );
 }
 
 #[test]
 fn field_touching_or_crossing_the_bounds_stays_closed() {
     let sphere = |p: DVec3| 1.0 - p.length();
     // The sphere exactly fills the box: the padding cell keeps it whole.
-    let fits = marching_cubes(&Aabb { min: DVec3::splat(-1.0), max: DVec3::ONE }, 40, sphere);
+    let fits = marching_cubes(
+        &Aabb {
+            min: DVec3::splat(-1.0),
+            max: DVec3::ONE,
+        },
+        40,
+        sphere,
+    );
     assert_closed_oriented(&fits, "sphere in its box");
     let rel = (fits.signed_volume() - 4.0 / 3.0 * PI).abs() / (4.0 / 3.0 * PI);
     assert!(rel < 0.02, "sphere volume {}", fits.signed_volume());
     // The field is still positive on the grid's border: the surface is clipped, yet closed.
-    let half = Aabb { min: DVec3::splat(-0.5), max: DVec3::splat(0.5) };
+    let half = Aabb {
+        min: DVec3::splat(-0.5),
+        max: DVec3::splat(0.5),
+    };
     let clipped = marching_cubes(&half, 20, sphere);
     assert_closed_oriented(&clipped, "clipped sphere");
     assert_eq!(euler_characteristic(&clipped), 2);
@@ -146,11 +175,31 @@ fn field_touching_or_crossing_the_bounds_stays_closed() {
 fn empty_inputs_give_empty_meshes() {
     let none = marching_cubes(&Aabb::EMPTY, 10, |_| 1.0);
     assert!(none.triangles.is_empty());
-    let outside = marching_cubes(&Aabb { min: DVec3::ZERO, max: DVec3::ONE }, 10, |_| -1.0);
+    let outside = marching_cubes(
+        &Aabb {
+            min: DVec3::ZERO,
+            max: DVec3::ONE,
+        },
+        10,
+        |_| -1.0,
+    );
     assert_eq!(outside, Mesh::default());
-    let nan = marching_cubes(&Aabb { min: DVec3::ZERO, max: DVec3::ONE }, 10, |_| f64::NAN);
+    let nan = marching_cubes(
+        &Aabb {
+            min: DVec3::ZERO,
+            max: DVec3::ONE,
+        },
+        10,
+        |_| f64::NAN,
+    );
     assert!(nan.triangles.is_empty());
-    let dead = BlobField::new(&[Blob { b: 0.0, ..sphere_blob(DVec3::ZERO, 1.0) }], 1.0);
+    let dead = BlobField::new(
+        &[Blob {
+            b: 0.0,
+            ..sphere_blob(DVec3::ZERO, 1.0)
+        }],
+        1.0,
+    );
     assert!(polygonize(&dead, 50).triangles.is_empty());
 }
 
@@ -160,7 +209,11 @@ fn many_blobs(n: usize) -> Vec<Blob> {
         .map(|i| {
             let t = i as f64;
             let e = Ellipsoid {
-                center: DVec3::new((t * 0.71).sin(), (t * 1.37).cos() * 0.8, (t * 0.23).sin() * 0.6),
+                center: DVec3::new(
+                    (t * 0.71).sin(),
+                    (t * 1.37).cos() * 0.8,
+                    (t * 0.23).sin() * 0.6,
+                ),
                 rotation: DQuat::from_euler(EulerRot::XYZ, t, 2.0 * t, 0.5 * t),
                 semi_axes: DVec3::new(0.12 + 0.03 * (t * 0.9).sin(), 0.08, 0.15),
             };
@@ -198,4 +251,80 @@ fn three_hundred_blobs_at_resolution_200() {
         mesh.triangles.len()
     );
     assert_closed_oriented(&mesh, "300 blobs");
+}
+
+/// A fresh scratch directory under the system temp dir.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("nephele-polygonize-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn model_of(blobs: Vec<Blob>) -> nephele::blobby::BlobModel {
+    let field = BlobField::new(&blobs, 1.0);
+    nephele::blobby::BlobModel {
+        version: nephele::blobby::model_file::MODEL_VERSION,
+        primitive: nephele::decompose::Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: nephele::blobby::SourceInfo {
+            mesh: "test".into(),
+            bounds: field.bounds(),
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    }
+}
+
+#[test]
+fn cli_mesh_writes_a_closed_obj_and_ply() {
+    let dir = scratch("cli");
+    let model_path = dir.join("model.ron");
+    nephele::blobby::save_model(&model_path, &model_of(many_blobs(40))).unwrap();
+    for ext in ["obj", "ply"] {
+        let out = dir.join(format!("surface.{ext}"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+            .args([
+                "mesh",
+                model_path.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .args(["--resolution", "48"])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&status.stdout);
+        assert!(
+            status.status.success(),
+            "{stdout} {}",
+            String::from_utf8_lossy(&status.stderr)
+        );
+        assert!(stdout.contains("triangles"), "{stdout}");
+        let mesh = nephele::mesh::io::read_mesh(&out).unwrap();
+        assert_closed_oriented(&mesh, ext);
+        let direct = polygonize(
+            &nephele::blobby::load_model(&model_path).unwrap().field(),
+            48,
+        );
+        assert_eq!(mesh.triangles.len(), direct.triangles.len(), "{ext}");
+    }
+    // Bad input: a missing model and a wrong extension fail with a message, no panic.
+    let missing = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["mesh", dir.join("nope.ron").to_str().unwrap(), "-o"])
+        .arg(dir.join("x.obj"))
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("nope.ron"));
+    let bad_ext = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["mesh", model_path.to_str().unwrap(), "-o"])
+        .arg(dir.join("x.stl"))
+        .output()
+        .unwrap();
+    assert!(!bad_ext.status.success());
+    assert!(String::from_utf8_lossy(&bad_ext.stderr).contains(".obj or .ply"));
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,6 +1,240 @@
 //! Cloud animation schemes (paper §5.2, DESIGN.md §6): aggregation (pieces of cloud gather into
 //! the target) and diffusion (the target spreads from one piece).
 //!
-//! In: a fitted [`crate::blobby::BlobModel`] and the scheme's settings. Out: per frame, the full
-//! blob list (index = blob identity, same length as the model; hidden blobs have `B = 0`).
-//! The last frame equals the model's blobs exactly.
+//! In: a fitted [`crate::blobby::BlobModel`], the scheme's settings and the shot's [`Timeline`].
+//! Out: a [`Plan`] that gives, per frame, the full blob list (index = blob identity, same length
+//! as the model; hidden blobs have `B = 0`). The last frame equals the model's blobs exactly
+//! (bit-equal), whatever the scheme.
+//!
+//! Time: frame `k` (0-based) of a shot of `n` frames at `fps` is at `k / fps` seconds. The motion
+//! ends `hold_seconds` before the last frame (the target then sits still); a shot shorter than
+//! its hold shows the target throughout.
+
+pub mod aggregation;
+pub mod diffusion;
+mod repulsion;
+
+use glam::{DQuat, DVec3};
+use serde::{Deserialize, Serialize};
+
+use crate::blobby::{Blob, BlobModel};
+use crate::geometry::Aabb;
+
+pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
+pub use diffusion::{DiffusionConfig, DiffusionPlan};
+
+/// Errors of the animation stage: settings that cannot produce an animation.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AnimateError {
+    /// A setting is out of range; `field` is its path in the scene file (`animation.speed`).
+    #[error("{field}: {message}")]
+    Invalid {
+        /// Dotted path of the setting.
+        field: String,
+        /// What is wrong, with the value found.
+        message: String,
+    },
+    /// The model has no blobs.
+    #[error("the target model has no blobs")]
+    EmptyModel,
+}
+
+/// Build an [`AnimateError::Invalid`].
+pub(crate) fn invalid(field: &str, message: impl Into<String>) -> AnimateError {
+    AnimateError::Invalid {
+        field: field.to_string(),
+        message: message.into(),
+    }
+}
+
+/// One animation scheme with its settings (the scene file's `animation` field).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Animation {
+    /// Clusters of blobs fly in from outside and gather into the target (paper §5.2.1).
+    Aggregation(AggregationConfig),
+    /// The target grows from its largest blob outward (paper §5.2.2).
+    Diffusion(DiffusionConfig),
+}
+
+impl Default for Animation {
+    fn default() -> Self {
+        Animation::Diffusion(DiffusionConfig::default())
+    }
+}
+
+impl Animation {
+    /// Check every setting; errors name the field as `animation.NAME`.
+    pub fn validate(&self) -> Result<(), AnimateError> {
+        match self {
+            Animation::Aggregation(c) => c.validate(),
+            Animation::Diffusion(c) => c.validate(),
+        }
+    }
+
+    /// Seconds the target holds still at the end of the shot.
+    pub fn hold_seconds(&self) -> f64 {
+        match self {
+            Animation::Aggregation(c) => c.hold_seconds,
+            Animation::Diffusion(c) => c.hold_seconds,
+        }
+    }
+}
+
+/// When each frame happens: frame count, rate, and the hold at the end.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Timeline {
+    /// Frames in the shot (≥ 1).
+    pub frames: usize,
+    /// Frames per second (> 0).
+    pub fps: f64,
+    /// Seconds at the end during which the target sits still (≥ 0).
+    pub hold_seconds: f64,
+}
+
+impl Timeline {
+    /// Time of frame `k` (0-based) in seconds.
+    pub fn time(&self, k: usize) -> f64 {
+        k as f64 / self.fps
+    }
+
+    /// Seconds from the first frame to the end of the motion (0 when the hold covers the shot).
+    pub fn motion_seconds(&self) -> f64 {
+        (self.time(self.frames.saturating_sub(1)) - self.hold_seconds).max(0.0)
+    }
+
+    /// Progress of the motion at frame `k`, in `[0, 1]`; exactly 1 from the end of the motion on
+    /// (so the last frame is always 1).
+    pub fn progress(&self, k: usize) -> f64 {
+        let m = self.motion_seconds();
+        if m <= 0.0 || k + 1 >= self.frames {
+            return 1.0;
+        }
+        (self.time(k) / m).clamp(0.0, 1.0)
+    }
+}
+
+/// A planned animation: cheap to query for any frame, in any order.
+#[derive(Clone, Debug)]
+pub enum Plan {
+    /// Aggregation keyframes.
+    Aggregation(AggregationPlan),
+    /// Diffusion order and schedule.
+    Diffusion(DiffusionPlan),
+}
+
+/// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`.
+pub fn plan(
+    animation: &Animation,
+    model: &BlobModel,
+    timeline: Timeline,
+    seed: u64,
+) -> Result<Plan, AnimateError> {
+    animation.validate()?;
+    if model.blobs.is_empty() {
+        return Err(AnimateError::EmptyModel);
+    }
+    if timeline.frames == 0 || !(timeline.fps.is_finite() && timeline.fps > 0.0) {
+        return Err(invalid(
+            "shot",
+            format!(
+                "need at least one frame and a positive frame rate, got {} frames at {} fps",
+                timeline.frames, timeline.fps
+            ),
+        ));
+    }
+    Ok(match animation {
+        Animation::Aggregation(c) => {
+            Plan::Aggregation(AggregationPlan::new(c, &model.blobs, timeline, seed))
+        }
+        Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
+            c,
+            &model.blobs,
+            model.threshold,
+            timeline,
+        )),
+    })
+}
+
+impl Plan {
+    /// The blobs of frame `k` (0-based; frames past the end give the target).
+    pub fn frame(&self, k: usize) -> Vec<Blob> {
+        match self {
+            Plan::Aggregation(p) => p.frame(k),
+            Plan::Diffusion(p) => p.frame(k),
+        }
+    }
+
+    /// The shot's timeline.
+    pub fn timeline(&self) -> Timeline {
+        match self {
+            Plan::Aggregation(p) => p.timeline(),
+            Plan::Diffusion(p) => p.timeline(),
+        }
+    }
+}
+
+/// Axis-aligned bounds of the blobs' ellipsoids (`ρ = 1`), live blobs only. This is "the
+/// target's bounding box" of the animation and of the scene's camera framing and length unit.
+pub fn blob_bounds(blobs: &[Blob]) -> Aabb {
+    blobs
+        .iter()
+        .filter(|b| b.is_live())
+        .fold(Aabb::EMPTY, |acc, b| acc.union(b.ellipsoid().bounds()))
+}
+
+/// Linear interpolation of `a` to `b` at `t ∈ [0, 1]`.
+#[inline]
+pub(crate) fn lerp(a: f64, b: f64, t: f64) -> f64 {
+    a + (b - a) * t
+}
+
+/// Interpolate the shape of two blobs (semi-axes, A, B linearly; rotation by slerp) with the
+/// given centre.
+pub(crate) fn blend_shape(a: &Blob, b: &Blob, t: f64, center: DVec3) -> Blob {
+    Blob {
+        center,
+        rotation: slerp(a.rotation, b.rotation, t),
+        semi_axes: a.semi_axes.lerp(b.semi_axes, t),
+        a: lerp(a.a, b.a, t),
+        b: lerp(a.b, b.b, t),
+    }
+}
+
+/// Shortest-path slerp that renormalises, robust to slightly non-unit inputs.
+fn slerp(a: DQuat, b: DQuat, t: f64) -> DQuat {
+    a.normalize().slerp(b.normalize(), t).normalize()
+}
+
+/// `smoothstep` on `[0, 1]`: zero slope at both ends.
+#[inline]
+pub(crate) fn smoothstep(t: f64) -> f64 {
+    let t = t.clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_reaches_one_at_the_hold_and_last_frame() {
+        let t = Timeline {
+            frames: 25,
+            fps: 24.0,
+            hold_seconds: 0.5,
+        };
+        assert_eq!(t.progress(0), 0.0);
+        assert!((t.motion_seconds() - 0.5).abs() < 1e-12);
+        assert!((t.progress(6) - 0.5).abs() < 1e-12);
+        assert_eq!(t.progress(12), 1.0);
+        assert_eq!(t.progress(24), 1.0);
+        let one = Timeline {
+            frames: 1,
+            fps: 24.0,
+            hold_seconds: 0.0,
+        };
+        assert_eq!(one.progress(0), 1.0);
+    }
+}

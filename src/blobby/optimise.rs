@@ -37,6 +37,9 @@ pub struct FullConfig {
     pub max_points: usize,
     /// Blobs whose `B` falls below this are re-seeded.
     pub b_floor: f64,
+    /// Strength of the prior keeping radii and centres near the decomposition, as a length
+    /// in units of `D` (see `Sweep::improve`).
+    pub shape_prior: f64,
 }
 
 impl Default for FullConfig {
@@ -44,12 +47,13 @@ impl Default for FullConfig {
         FullConfig {
             sweeps: 6,
             iterations: 2,
-            inside_offsets: vec![0.005],
-            outside_offsets: vec![0.005, 0.03],
+            inside_offsets: vec![0.005, 0.02],
+            outside_offsets: vec![0.005, 0.03, 0.1],
             constraint_weight: 0.5,
             margin: 0.05,
             max_points: 30_000,
             b_floor: 0.2,
+            shape_prior: 0.002,
         }
     }
 }
@@ -80,9 +84,80 @@ struct Points {
     kind: Vec<Kind>,
 }
 
-fn constraint_points(cfg: &FullConfig, samples: &SurfaceSamples, diag: f64) -> Points {
+/// Surface samples bucketed in a uniform grid, for "is any sample within r of q?" queries.
+struct SampleGrid<'a> {
+    points: &'a [DVec3],
+    inv_cell: f64,
+    /// `(cell key, sample index)` sorted by key.
+    keyed: Vec<(u64, u32)>,
+}
+
+impl<'a> SampleGrid<'a> {
+    fn new(points: &'a [DVec3], cell: f64) -> SampleGrid<'a> {
+        let inv_cell = 1.0 / cell;
+        let mut keyed: Vec<(u64, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| (Self::key(Self::cell_of(p, inv_cell)), i as u32))
+            .collect();
+        keyed.sort_unstable();
+        SampleGrid {
+            points,
+            inv_cell,
+            keyed,
+        }
+    }
+
+    fn cell_of(p: DVec3, inv_cell: f64) -> [i64; 3] {
+        let c = (p * inv_cell).floor();
+        [c.x as i64, c.y as i64, c.z as i64]
+    }
+
+    fn key(c: [i64; 3]) -> u64 {
+        // 21 bits an axis, offset so negative cells pack too.
+        let f = |v: i64| ((v + (1 << 20)) as u64) & 0x1F_FFFF;
+        f(c[0]) | (f(c[1]) << 21) | (f(c[2]) << 42)
+    }
+
+    /// True when some sample lies within `r` (at most one cell) of `q`.
+    fn any_within(&self, q: DVec3, r: f64) -> bool {
+        let c = Self::cell_of(q, self.inv_cell);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let k = Self::key([c[0] + dx, c[1] + dy, c[2] + dz]);
+                    let lo = self.keyed.partition_point(|e| e.0 < k);
+                    let hit = self.keyed[lo..]
+                        .iter()
+                        .take_while(|e| e.0 == k)
+                        .any(|e| self.points[e.1 as usize].distance_squared(q) < r * r);
+                    if hit {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+/// Surface points and offset constraint points. An offset point is kept only when no surface
+/// sample is nearer than 80 % of its offset: a point pushed through a thin part or into a
+/// concavity would otherwise demand the wrong sign.
+fn constraint_points(
+    cfg: &FullConfig,
+    samples: &SurfaceSamples,
+    far: &[(DVec3, bool)],
+    diag: f64,
+) -> Points {
     let m = samples.positions.len();
     let stride = m.div_ceil(cfg.max_points.max(1)).max(1);
+    let max_offset = cfg
+        .inside_offsets
+        .iter()
+        .chain(&cfg.outside_offsets)
+        .fold(1e-6, |a: f64, &b| a.max(b));
+    let grid = SampleGrid::new(&samples.positions, max_offset * diag);
     let mut pts = Points {
         x: Vec::new(),
         n: Vec::new(),
@@ -92,14 +167,67 @@ fn constraint_points(cfg: &FullConfig, samples: &SurfaceSamples, diag: f64) -> P
         .chain(cfg.inside_offsets.iter().map(|&o| (Kind::Inside, -o)))
         .chain(cfg.outside_offsets.iter().map(|&o| (Kind::Outside, o)));
     for (kind, off) in offsets {
-        for i in (0..m).step_by(stride) {
-            let n = samples.normals[i];
-            pts.x.push(samples.positions[i] + n * (off * diag));
+        let candidates: Vec<(DVec3, DVec3)> = (0..m)
+            .step_by(stride)
+            .collect::<Vec<_>>()
+            .par_iter()
+            .filter_map(|&i| {
+                let n = samples.normals[i];
+                let x = samples.positions[i] + n * (off * diag);
+                let clear = off == 0.0 || !grid.any_within(x, 0.8 * off.abs() * diag);
+                clear.then_some((x, n))
+            })
+            .collect();
+        for (x, n) in candidates {
+            pts.x.push(x);
             pts.n.push(n);
             pts.kind.push(kind);
         }
     }
+    for &(x, inside) in far {
+        pts.x.push(x);
+        pts.n.push(DVec3::ZERO);
+        pts.kind
+            .push(if inside { Kind::Inside } else { Kind::Outside });
+    }
     pts
+}
+
+/// Far-field sign constraints: points of a coarse grid over the mesh's bounds (expanded by
+/// 15 % of `D`, `resolution` cells on the longest side) that lie farther than `1.5 %` of `D` from
+/// the surface, with whether they are inside. They stop blobs from growing a spurious surface
+/// away from the mesh, where no offset sample reaches. Inside/outside comes from parry's
+/// pseudo-normal test, so the mesh must be consistently oriented; an unusable mesh gives none.
+pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVec3, bool)> {
+    use parry3d_f64::query::PointQuery;
+    use parry3d_f64::shape::{TriMesh, TriMeshFlags};
+    let bounds = mesh.bounds();
+    let diag = bounds.diagonal();
+    let bounds = bounds.expanded(0.15 * diag);
+    let Ok(tri) = TriMesh::with_flags(
+        mesh.positions.clone(),
+        mesh.triangles.clone(),
+        TriMeshFlags::ORIENTED,
+    ) else {
+        return Vec::new();
+    };
+    let size = bounds.size();
+    let cell = size.max_element() / resolution.max(2) as f64;
+    let n = [
+        (size.x / cell).ceil() as usize + 1,
+        (size.y / cell).ceil() as usize + 1,
+        (size.z / cell).ceil() as usize + 1,
+    ];
+    (0..n[0] * n[1] * n[2])
+        .into_par_iter()
+        .filter_map(|k| {
+            let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
+            let x = bounds.min + DVec3::new(i as f64, j as f64, l as f64) * cell;
+            let proj = tri.project_local_point(x, false);
+            let d = proj.point.distance(x);
+            (d > 0.015 * diag).then_some((x, proj.is_inside))
+        })
+        .collect()
 }
 
 /// One blob in optimisation coordinates.
@@ -133,14 +261,22 @@ impl Params {
         }
     }
 
-    /// Apply a step `[dc (3, in units of `scale`), ω (3), d log r (3), d log B]`.
+    /// Apply a step `[dc (3, in units of `scale`), ω (3), d log r (3), d log B]`, keeping the
+    /// influence radii within `[1e-3, 0.5]·scale`, their ratio within 8 and `B` within
+    /// `[1e-3, 50]` (beyond these a blob is a needle or a spike that no sample constrains).
     fn stepped(self, d: &[f64; 10], scale: f64) -> Params {
         let w = DVec3::new(d[3], d[4], d[5]);
+        let lo = (1e-3 * scale).ln();
+        let hi = (0.5 * scale).ln();
+        let mut log_r =
+            (self.log_r + DVec3::new(d[6], d[7], d[8])).clamp(DVec3::splat(lo), DVec3::splat(hi));
+        let max_ratio = 8f64.ln();
+        log_r = log_r.max(DVec3::splat(log_r.max_element() - max_ratio));
         Params {
             c: self.c + DVec3::new(d[0], d[1], d[2]) * scale,
             q: (self.q * DQuat::from_scaled_axis(w)).normalize(),
-            log_r: self.log_r + DVec3::new(d[6], d[7], d[8]),
-            log_b: self.log_b + d[9],
+            log_r,
+            log_b: (self.log_b + d[9]).clamp(1e-3f64.ln(), 50f64.ln()),
         }
     }
 }
@@ -356,8 +492,18 @@ struct Sweep<'a> {
 
 impl Sweep<'_> {
     /// LM on one blob against the points `idx`; returns the improved parameters.
-    fn improve(&self, p0: Params, idx: &[u32]) -> Params {
+    fn improve(&self, p0: Params, anchor: &Params, idx: &[u32]) -> Params {
         let e0 = Eval::new(&p0);
+        // Shape prior: a blob's radii and centre stay near where the decomposition put them
+        // (in units of its mean radius), weighted like `idx.len()` points `shape_prior·D` off.
+        // Without it, weak blobs stretch into long tails that add up to spurious surface.
+        let w = self.cfg.shape_prior * self.scale * (idx.len() as f64).sqrt();
+        let r0 = anchor.log_r.exp().element_sum() / 3.0;
+        let prior = |p: &Params| -> [f64; 6] {
+            let dc = (p.c - anchor.c) / r0;
+            let dr = p.log_r - anchor.log_r;
+            [dc.x, dc.y, dc.z, dr.x, dr.y, dr.z].map(|v| v * w)
+        };
         // F without this blob, per incident point.
         let rest: Vec<f64> = idx
             .iter()
@@ -377,7 +523,8 @@ impl Sweep<'_> {
                     );
                     res * res
                 })
-                .sum()
+                .sum::<f64>()
+                + prior(p).iter().map(|v| v * v).sum::<f64>()
         };
         let mut p = p0;
         let mut c = cost(&p);
@@ -399,6 +546,15 @@ impl Sweep<'_> {
                         h[a][b] += j[a] * j[b];
                     }
                 }
+            }
+            // Prior residuals: d(centre)/d(step) = scale, d(log r)/d(step) = 1.
+            let pr = prior(&p);
+            for k in 0..3 {
+                let jc = w * self.scale / r0;
+                g[k] += jc * pr[k];
+                h[k][k] += jc * jc;
+                g[6 + k] += w * pr[3 + k];
+                h[6 + k][6 + k] += w * w;
             }
             for a in 0..10 {
                 for b in 0..a {
@@ -468,12 +624,13 @@ fn reseed_dead(
     pts: &Points,
     field: &BlobField,
     diag: f64,
-) -> usize {
+) -> Vec<usize> {
     let dead: Vec<usize> = (0..blobs.len())
         .filter(|&i| blobs[i].b.abs() < cfg.b_floor)
         .collect();
+    let mut moved = Vec::new();
     if dead.is_empty() {
-        return 0;
+        return moved;
     }
     // Worst surface points by |F|/|∇F|, largest first, deterministic tie-break by index.
     let mut worst: Vec<(f64, usize)> = (0..pts.x.len())
@@ -487,7 +644,6 @@ fn reseed_dead(
     worst.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     let radius = 0.02 * diag;
     let mut placed: Vec<DVec3> = Vec::new();
-    let mut count = 0;
     let mut cursor = worst.iter();
     for &i in &dead {
         let Some(&(_, k)) =
@@ -506,9 +662,9 @@ fn reseed_dead(
             a,
             b: (1.0 + a) / a,
         };
-        count += 1;
+        moved.push(i);
     }
-    count
+    moved
 }
 
 /// Optimise every parameter of every blob in place. Deterministic at any thread count.
@@ -516,19 +672,26 @@ pub fn optimise_full(
     cfg: &FullConfig,
     blobs: &mut [Blob],
     samples: &SurfaceSamples,
+    far: &[(DVec3, bool)],
     diag: f64,
     threshold: f64,
 ) -> FullReport {
-    let pts = constraint_points(cfg, samples, diag);
+    let pts = constraint_points(cfg, samples, far, diag);
     let mut report = FullReport {
         rms_before: surface_rms(&BlobField::new(blobs, threshold), &pts, diag),
         ..FullReport::default()
     };
     let scale = diag;
+    let mut reseeded = vec![false; blobs.len()];
+    let mut anchors: Vec<Params> = blobs.iter().map(Params::from_blob).collect();
     for sweep in 0..cfg.sweeps {
         let field = BlobField::new(blobs, threshold);
         if sweep > 0 && sweep + 1 < cfg.sweeps {
-            report.reseeded += reseed_dead(cfg, blobs, &pts, &field, diag);
+            for i in reseed_dead(cfg, blobs, &pts, &field, diag) {
+                reseeded[i] = true;
+                anchors[i] = Params::from_blob(&blobs[i]);
+                report.reseeded += 1;
+            }
         }
         let field = BlobField::new(blobs, threshold);
         let inv_g = gradient_norms(&field, &pts, diag);
@@ -553,6 +716,7 @@ pub fn optimise_full(
                             i,
                             sweep_state.improve(
                                 Params::from_blob(&blobs[i]),
+                                &anchors[i],
                                 &entries[start[i]..start[i + 1]],
                             ),
                         )
@@ -571,6 +735,15 @@ pub fn optimise_full(
         }
     }
     report.rms_after = surface_rms(&BlobField::new(blobs, threshold), &pts, diag);
+    // Keep the selection order meaningful (the diffusion animation starts from the first blob):
+    // blobs that kept their decomposition origin first, in order; re-seeded ones after them.
+    let original = blobs.to_vec();
+    let order = (0..blobs.len())
+        .filter(|&i| !reseeded[i])
+        .chain((0..blobs.len()).filter(|&i| reseeded[i]));
+    for (k, i) in order.enumerate() {
+        blobs[k] = original[i];
+    }
     report
 }
 
@@ -587,7 +760,7 @@ mod tests {
             log_b: 0.4,
         };
         let x = DVec3::new(0.5, 0.1, 0.2);
-        let scale = 2.0;
+        let scale = 4.0;
         let (_, j) = Eval::new(&p).value_and_jacobian(x, scale);
         for a in 0..10 {
             let h = 1e-6;
@@ -645,7 +818,7 @@ mod tests {
             max_points: 10_000,
             ..FullConfig::default()
         };
-        let report = optimise_full(&cfg, &mut blobs, &s, 2.0 * 3f64.sqrt(), 1.0);
+        let report = optimise_full(&cfg, &mut blobs, &s, &[], 2.0 * 3f64.sqrt(), 1.0);
         assert!(report.rms_after < 0.2 * report.rms_before, "{report:?}");
         assert!(report.rms_after < 1e-3, "{report:?}");
     }

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use nephele::blobby::fit::FaithfulConfig;
+use nephele::blobby::optimise::FullConfig;
 use nephele::decompose::{ObstacleShift, Primitive};
 use nephele::pipeline::{self, FitConfig, Optimisation};
 
@@ -33,6 +34,10 @@ pub struct Args {
     /// Skip the optimisation of A and B (the "before optimisation" model).
     #[arg(long)]
     pub no_optimise: bool,
+    /// Paper-faithful optimisation only (Nelder–Mead on A and B, centres and shapes fixed),
+    /// instead of the default full optimisation of every blob parameter.
+    #[arg(long, conflicts_with = "no_optimise")]
+    pub faithful: bool,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -82,8 +87,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         optimisation: if args.no_optimise {
             Optimisation::None
-        } else {
+        } else if args.faithful {
             Optimisation::Faithful(FaithfulConfig::default())
+        } else {
+            Optimisation::Full(FaithfulConfig::default(), FullConfig::default())
         },
         seed: args.seed,
         ..FitConfig::default()

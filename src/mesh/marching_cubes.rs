@@ -449,7 +449,9 @@ fn march_cell(
     }
     for t in 0..6 {
         let corners = table.tets[t];
-        let mask = (0..4).fold(0usize, |m, v| m | ((((cube >> corners[v]) & 1) as usize) << v));
+        let mask = (0..4).fold(0usize, |m, v| {
+            m | ((((cube >> corners[v]) & 1) as usize) << v)
+        });
         let case = table.cases[t][mask];
         let vert = |k: usize| {
             let id = ids.get(i, j, table.edges[t][case.edges[k] as usize]);

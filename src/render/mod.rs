@@ -4,10 +4,36 @@
 //! In: [`RenderSettings`] and a frame's blobs (index = identity: a blob keeps its index across
 //! frames so that noise anchored to it travels with it; dead or zero-size blobs are skipped).
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
+//!
+//! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA and
+//! builds the per-frame light grid ([`light_grid`]: optical depth toward the sun and upward);
+//! [`integrate`] marches every pixel through the blob supports only (tile frustum culling, then
+//! per-ray ellipsoid intervals), evaluating the noisy density ([`blobs`], [`noise`]) and the
+//! lighting ([`shading`]).
+//!
+//! References:
+//! - L. G. Henyey, J. L. Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93, 70–83.
+//! - M. Wrenninge, C. Kulla, V. Lundqvist (2013), "Oz: the great and volumetric", SIGGRAPH Talks
+//!   (multiple-scattering octaves).
+//! - S. Hillaire (2015/2016), "Physically based sky, atmosphere and cloud rendering in
+//!   Frostbite" (energy-conserving step integration, the octave scheme in real time).
+//! - K. Perlin (2002), "Improving noise", SIGGRAPH (gradient noise).
+//! - A. Schneider (2015), "The real-time volumetric cloudscapes of Horizon Zero Dawn" (noise
+//!   that erodes the cloud's edge more than its core).
 
+pub mod blobs;
+pub mod camera;
+pub mod integrate;
+pub mod light_grid;
+pub mod medium;
+pub mod noise;
 pub mod output;
 pub mod settings;
+pub mod shading;
 
+pub use blobs::{BlobMedium, ray_ellipsoid};
+pub use integrate::{render_medium, render_medium_unshaded};
+pub use medium::{Homogeneous, Medium, Shape};
 pub use settings::{Camera, CloudMaterial, Noise, Quality, RenderSettings, Sky, Sun};
 
 use crate::blobby::Blob;
@@ -24,13 +50,14 @@ pub struct Frame {
     pub rgb: Vec<[f32; 3]>,
     /// Coverage `1 − transmittance` per pixel.
     pub alpha: Vec<f32>,
-    /// Transmittance-weighted mean depth along the ray (infinity where the ray hits nothing).
+    /// Transmittance-weighted mean distance from the eye along the pixel's ray (infinity where
+    /// the ray hits nothing).
     pub depth: Vec<f32>,
 }
 
 /// Render one frame. `frame_index` decorrelates per-pixel jitter between frames.
 /// Deterministic for a given input at any thread count.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob], frame_index: u32) -> Frame {
-    let _ = (settings, blobs, frame_index);
-    todo!("render helper")
+    let medium = BlobMedium::new(settings, blobs);
+    render_medium(settings, &medium, frame_index)
 }

@@ -35,7 +35,7 @@ impl Default for Sun {
         Sun {
             direction: Vec3::new(-0.4, -0.8, -0.3),
             color: Vec3::new(1.0, 0.95, 0.85),
-            intensity: 6.0,
+            intensity: 12.0,
         }
     }
 }
@@ -56,8 +56,8 @@ pub enum Sky {
 impl Default for Sky {
     fn default() -> Self {
         Sky::Gradient {
-            zenith: Vec3::new(0.25, 0.45, 0.85),
-            horizon: Vec3::new(0.75, 0.85, 0.95),
+            zenith: Vec3::new(0.08, 0.2, 0.55),
+            horizon: Vec3::new(0.36, 0.5, 0.72),
         }
     }
 }
@@ -77,8 +77,8 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.35,
-            frequency: 3.0,
+            amplitude: 1.5,
+            frequency: 5.0,
             octaves: 4,
         }
     }
@@ -116,11 +116,17 @@ impl Default for CloudMaterial {
 /// Speed/quality trade-offs of the ray marcher.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quality {
-    /// March step as a fraction of the smallest blob's smallest support radius (clamped by
-    /// the renderer to a sane range relative to the scene size).
+    /// Coarse march step (through the empty parts of the blob supports) as a fraction of the
+    /// median blob's support radius (clamped by the renderer to `[L/2000, L/16]`).
     pub step_scale: f32,
     /// Resolution of the light-transmittance grid along its longest side.
     pub shadow_grid: u32,
+    /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
+    /// only; at most 6).
+    pub ms_octaves: u32,
+    /// Largest optical thickness `σ·h` of one march step inside the cloud (smaller = less
+    /// grain at the sunlit surface, slower).
+    pub optical_step: f32,
 }
 
 impl Quality {
@@ -129,6 +135,8 @@ impl Quality {
         Quality {
             step_scale: 0.25,
             shadow_grid: 128,
+            ms_octaves: 3,
+            optical_step: 0.25,
         }
     }
 
@@ -137,6 +145,8 @@ impl Quality {
         Quality {
             step_scale: 0.6,
             shadow_grid: 48,
+            ms_octaves: 2,
+            optical_step: 0.5,
         }
     }
 }

@@ -1,2 +1,160 @@
 //! Scene files (RON): a target, an animation scheme, camera, lighting, material, shot and
 //! output settings; and rendering a shot to frame files with resume and frame ranges.
+//!
+//! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png` (and optionally
+//! `<name>_0001.blobs.ron`), written atomically so that a frame whose files all exist is
+//! finished.
+//!
+//! Paths: the target (`Model("…")`, `Fit(mesh: "…")`) resolves against the scene file's folder,
+//! so a scene can sit beside its models; the output folder resolves against the current
+//! directory, so renders land in the repository's `renders/` when run from its root.
+
+pub mod camera;
+pub mod file;
+pub mod shot;
+pub mod target;
+
+use std::path::{Path, PathBuf};
+
+pub use file::{AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, Shot, Target};
+pub use shot::{FrameReport, RenderOptions, ShotReport, render_shot};
+pub use target::load_target;
+
+/// Everything that can go wrong reading a scene or rendering its shot.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SceneError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// File concerned.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// Malformed RON, an unknown field or a wrong type.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// Scene file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What the parser expected.
+        message: String,
+    },
+    /// A value out of range.
+    #[error("{path}: {field}: {message}")]
+    Invalid {
+        /// Scene file.
+        path: PathBuf,
+        /// Dotted field name (`shot.fps`).
+        field: String,
+        /// What is wrong, with the value found.
+        message: String,
+    },
+    /// The target's model or mesh file does not exist.
+    #[error(
+        "{scene}: target file {} does not exist (relative paths resolve against the scene file's folder)",
+        target.display()
+    )]
+    MissingTarget {
+        /// Scene file.
+        scene: PathBuf,
+        /// The resolved missing path.
+        target: PathBuf,
+    },
+    /// The target mesh could not be loaded.
+    #[error("{scene}: target mesh: {source}")]
+    Mesh {
+        /// Scene file.
+        scene: PathBuf,
+        /// Underlying error.
+        source: crate::mesh::MeshError,
+    },
+    /// The target model could not be read.
+    #[error("{scene}: target model: {source}")]
+    Model {
+        /// Scene file.
+        scene: PathBuf,
+        /// Underlying error.
+        source: crate::blobby::ModelError,
+    },
+    /// The animation cannot be planned.
+    #[error("{scene}: {source}")]
+    Animate {
+        /// Scene file.
+        scene: PathBuf,
+        /// Underlying error.
+        source: crate::animate::AnimateError,
+    },
+}
+
+/// A loaded, validated scene with its paths resolved.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The scene file.
+    pub path: PathBuf,
+    /// Its content; target paths are resolved (relative to the current directory).
+    pub file: SceneFile,
+    /// Output folder (from `output.dir`, default `renders/<scene name>`).
+    pub output_dir: PathBuf,
+    /// Frame file prefix (from `output.name`, default the scene file's stem).
+    pub name: String,
+}
+
+/// Read, parse and validate a scene file; resolve its paths and check that the target exists.
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    scene_from_str(path, &text)
+}
+
+/// [`load_scene`] on text already read (`path` locates relative paths and labels errors).
+pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
+    let mut file = file::parse(path, text)?;
+    file::validate(path, &file)?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let resolve = |p: &str| -> Result<String, SceneError> {
+        if p.starts_with("builtin:") {
+            return Ok(p.to_string());
+        }
+        let full = base.join(p);
+        if !full.exists() {
+            return Err(SceneError::MissingTarget {
+                scene: path.to_path_buf(),
+                target: full,
+            });
+        }
+        Ok(full.to_string_lossy().into_owned())
+    };
+    match &mut file.target {
+        Target::Model(p) => *p = resolve(p)?,
+        Target::Fit { mesh, .. } => *mesh = resolve(mesh)?,
+    }
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "shot".into());
+    let name = file.output.name.clone().unwrap_or_else(|| stem.clone());
+    if name.is_empty() || name.contains(['/', '\\']) {
+        return Err(SceneError::Invalid {
+            path: path.to_path_buf(),
+            field: "output.name".into(),
+            message: format!("must be a non-empty file name without slashes, got {name:?}"),
+        });
+    }
+    let output_dir = match &file.output.dir {
+        Some(d) => PathBuf::from(d),
+        None => Path::new("renders").join(&stem),
+    };
+    Ok(Scene {
+        path: path.to_path_buf(),
+        file,
+        output_dir,
+        name,
+    })
+}

@@ -11,7 +11,10 @@ pub fn assert_closed_oriented(mesh: &Mesh, what: &str) {
     assert!(!mesh.triangles.is_empty(), "{what}: empty mesh");
     let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
     for (t, &[a, b, c]) in mesh.triangles.iter().enumerate() {
-        assert!(a != b && b != c && c != a, "{what}: triangle {t} repeats a vertex");
+        assert!(
+            a != b && b != c && c != a,
+            "{what}: triangle {t} repeats a vertex"
+        );
         for e in [(a, b), (b, c), (c, a)] {
             *directed.entry(e).or_default() += 1;
         }
@@ -25,7 +28,11 @@ pub fn assert_closed_oriented(mesh: &Mesh, what: &str) {
         );
     }
     assert_eq!(mesh.boundary_edge_count(), 0, "{what}");
-    assert!(mesh.signed_volume() > 0.0, "{what}: inward (volume {})", mesh.signed_volume());
+    assert!(
+        mesh.signed_volume() > 0.0,
+        "{what}: inward (volume {})",
+        mesh.signed_volume()
+    );
 }
 
 /// Euler characteristic `V − E + F` over the vertices used by some triangle.

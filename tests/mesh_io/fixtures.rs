@@ -46,7 +46,13 @@ pub fn cube_obj() -> String {
             2 => format!("{}//1", q[k] + 1),
             _ => format!("{}/1/1", q[k] as i64 - 8), // relative: -8 is the first vertex
         };
-        s += &format!("f {} {} {} {}\n", corner(0), corner(1), corner(2), corner(3));
+        s += &format!(
+            "f {} {} {} {}\n",
+            corner(0),
+            corner(1),
+            corner(2),
+            corner(3)
+        );
     }
     s
 }
@@ -67,7 +73,11 @@ pub fn cube_off() -> String {
 /// `solid_header` the 80-byte header starts with "solid", as many exporters do.
 pub fn stl_binary(tris: &[[u32; 3]], claimed: u32, solid_header: bool) -> Vec<u8> {
     let p = cube_positions();
-    let mut b = if solid_header { b"solid cube".to_vec() } else { b"binary cube".to_vec() };
+    let mut b = if solid_header {
+        b"solid cube".to_vec()
+    } else {
+        b"binary cube".to_vec()
+    };
     b.resize(80, b' ');
     b.extend_from_slice(&claimed.to_le_bytes());
     for t in tris {
@@ -134,7 +144,9 @@ impl Ply {
 
     /// The header for `format` (`ascii`, `binary_little_endian`...).
     pub fn header(&self, format: &str) -> Vec<u8> {
-        let (nv, nf) = self.claimed.unwrap_or((self.vertices.len(), self.faces.len()));
+        let (nv, nf) = self
+            .claimed
+            .unwrap_or((self.vertices.len(), self.faces.len()));
         format!(
             "ply\nformat {format} 1.0\ncomment made by hand\n\
              element vertex {nv}\nproperty double x\nproperty uchar flag\nproperty float32 y\n\

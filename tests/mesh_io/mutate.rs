@@ -92,14 +92,24 @@ fn mutate(rng: &mut Pcg64, b: &mut Vec<u8>) {
         }
         3 => {
             // Replace one whitespace-delimited token with a hostile one.
-            let start = b[..at].iter().rposition(|c| c.is_ascii_whitespace()).map_or(0, |i| i + 1);
-            let end = b[at..].iter().position(|c| c.is_ascii_whitespace()).map_or(b.len(), |i| at + i);
+            let start = b[..at]
+                .iter()
+                .rposition(|c| c.is_ascii_whitespace())
+                .map_or(0, |i| i + 1);
+            let end = b[at..]
+                .iter()
+                .position(|c| c.is_ascii_whitespace())
+                .map_or(b.len(), |i| at + i);
             let t = HOSTILE_TEXT[rng.random_range(0..11)];
             b.splice(start..end, t.iter().copied());
         }
         4 => {
             let w = HOSTILE_WORDS[rng.random_range(0..HOSTILE_WORDS.len())];
-            let bytes = if rng.random::<bool>() { w.to_le_bytes() } else { w.to_be_bytes() };
+            let bytes = if rng.random::<bool>() {
+                w.to_le_bytes()
+            } else {
+                w.to_be_bytes()
+            };
             for (k, &x) in bytes.iter().enumerate() {
                 if let Some(c) = b.get_mut(at + k) {
                     *c = x;
@@ -145,7 +155,8 @@ pub fn mutation_run(seed: u64, per_seed: usize) -> Vec<String> {
                 Err(_) => Some("panicked".to_string()),
                 Ok(Err(e)) => {
                     tally.err += 1;
-                    (!e.to_string().starts_with("mutant")).then(|| format!("error without file name: {e}"))
+                    (!e.to_string().starts_with("mutant"))
+                        .then(|| format!("error without file name: {e}"))
                 }
                 Ok(Ok(m)) => {
                     tally.ok += 1;
@@ -164,10 +175,18 @@ pub fn mutation_run(seed: u64, per_seed: usize) -> Vec<String> {
             tally.err,
             tally.panics.len()
         ));
-        assert!(tally.ok > 0 && tally.err > 0, "{label}: mutations never/always break it");
+        assert!(
+            tally.ok > 0 && tally.err > 0,
+            "{label}: mutations never/always break it"
+        );
         failures.extend(tally.panics);
     }
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
     let _ = std::fs::remove_dir_all(dir);
     lines
 }
@@ -184,6 +203,8 @@ fn contract_violation(m: &nephele::mesh::Mesh) -> Option<String> {
     }
     m.triangles
         .iter()
-        .find(|t| t.iter().any(|&v| v as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        .find(|t| {
+            t.iter().any(|&v| v as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2]
+        })
         .map(|t| format!("Ok with bad triangle {t:?} ({n} vertices)"))
 }

@@ -167,7 +167,10 @@ mod tests {
             triangles: vec![[5, 1, 3], [3, 1, 5]],
         };
         assert_eq!(drop_unreferenced_vertices(&mut m), 3);
-        assert_eq!(m.positions, vec![DVec3::ONE, DVec3::splat(3.0), DVec3::splat(5.0)]);
+        assert_eq!(
+            m.positions,
+            vec![DVec3::ONE, DVec3::splat(3.0), DVec3::splat(5.0)]
+        );
         assert_eq!(m.triangles, vec![[2, 0, 1], [1, 0, 2]]);
     }
 
@@ -176,7 +179,13 @@ mod tests {
         let p = |x: f64, y: f64| DVec3::new(x, y, 0.0);
         let m = clean_up(Mesh {
             // 3 duplicates 0 (with -0.0), 4 duplicates 1.
-            positions: vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0), p(-0.0, 0.0), p(1.0, 0.0)],
+            positions: vec![
+                p(0.0, 0.0),
+                p(1.0, 0.0),
+                p(0.0, 1.0),
+                p(-0.0, 0.0),
+                p(1.0, 0.0),
+            ],
             triangles: vec![[0, 1, 2], [3, 2, 4], [0, 3, 2]],
         });
         assert_eq!(m.positions, vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0)]);

@@ -23,8 +23,8 @@ use super::{Mesh, MeshError};
 
 pub use write::write_mesh;
 
-use build::clean_up;
 pub(crate) use build::MeshBuilder;
+use build::clean_up;
 
 /// The mesh file formats nephele reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -69,9 +69,9 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
 fn parse_vertex<'a>(tokens: &mut impl Iterator<Item = &'a [u8]>) -> Result<[f64; 3], String> {
     let mut p = [0.0; 3];
     for (axis, c) in p.iter_mut().enumerate() {
-        let t = tokens.next().ok_or_else(|| {
-            format!("vertex has {axis} coordinates; 'v' needs x y z")
-        })?;
+        let t = tokens
+            .next()
+            .ok_or_else(|| format!("vertex has {axis} coordinates; 'v' needs x y z"))?;
         *c = parse_f64(t)?;
     }
     Ok(p)
@@ -82,7 +82,10 @@ fn parse_vertex<'a>(tokens: &mut impl Iterator<Item = &'a [u8]>) -> Result<[f64;
 fn parse_corner(corner: &[u8], defined: usize) -> Result<u32, String> {
     let v = corner.split(|&c| c == b'/').next().unwrap_or_default();
     if v.is_empty() {
-        return Err(format!("face corner '{}' has no vertex index", show(corner)));
+        return Err(format!(
+            "face corner '{}' has no vertex index",
+            show(corner)
+        ));
     }
     let k = parse_i64(v).map_err(|e| format!("face corner: {e}"))?;
     let index = match k {

@@ -12,7 +12,9 @@ use crate::mesh::{Mesh, MeshError};
 /// Parse an OFF file held in memory.
 pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     let mut t = Tokens::new(bytes, 1, true);
-    let eof = |t: &Tokens, what: &str| parse_error(path, t.line(), format!("file ends early: expected {what}"));
+    let eof = |t: &Tokens, what: &str| {
+        parse_error(path, t.line(), format!("file ends early: expected {what}"))
+    };
 
     // Header keyword: optional letters before "OFF"; a file may also start with the counts.
     let mut first = t.next_token().ok_or_else(|| eof(&t, "'OFF'"))?;
@@ -22,10 +24,15 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
             return Err(parse_error(
                 path,
                 first.1,
-                format!("unsupported OFF variant '{}' (only 3D OFF, COFF, NOFF, STOFF...)", show(first.0)),
+                format!(
+                    "unsupported OFF variant '{}' (only 3D OFF, COFF, NOFF, STOFF...)",
+                    show(first.0)
+                ),
             ));
         }
-        first = t.next_token().ok_or_else(|| eof(&t, "vertex and face counts"))?;
+        first = t
+            .next_token()
+            .ok_or_else(|| eof(&t, "vertex and face counts"))?;
     }
     let count = |tok: (&[u8], usize), what: &str| {
         parse_u32(tok.0, what).map_err(|m| parse_error(path, tok.1, m))
@@ -57,7 +64,8 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
             let (tok, line) = t
                 .next_token()
                 .ok_or_else(|| eof(&t, &format!("vertex {} of {nv}", i + 1)))?;
-            *c = parse_f64(tok).map_err(|m| parse_error(path, line, format!("vertex {}: {m}", i + 1)))?;
+            *c = parse_f64(tok)
+                .map_err(|m| parse_error(path, line, format!("vertex {}: {m}", i + 1)))?;
         }
         let line = t.line();
         builder
@@ -74,13 +82,18 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         let n = parse_u32(tok, "vertex count").map_err(err)? as usize;
         // Each index needs at least two bytes: refuse lengths that cannot be in the file.
         if n.saturating_mul(2) > t.remaining() + 1 {
-            return Err(err(format!("claims {n} vertices, more than the rest of the file holds")));
+            return Err(err(format!(
+                "claims {n} vertices, more than the rest of the file holds"
+            )));
         }
         poly.clear();
         for _ in 0..n {
             let (tok, l) = t.next_token().ok_or_else(|| eof(&t, "more face indices"))?;
             if l != line {
-                return Err(err(format!("has {} indices on its line, header says {n}", poly.len())));
+                return Err(err(format!(
+                    "has {} indices on its line, header says {n}",
+                    poly.len()
+                )));
             }
             let v = parse_u32(tok, "vertex index").map_err(err)?;
             if v as usize >= nv {
@@ -111,19 +124,27 @@ mod tests {
 
     #[test]
     fn errors() {
-        let e = parse(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", Path::new("t.off"))
-            .unwrap_err()
-            .to_string();
+        let e = parse(
+            b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+            Path::new("t.off"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("t.off:6:") && e.contains("face 1"), "{e}");
-        let e = parse(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", Path::new("t.off"))
-            .unwrap_err()
-            .to_string();
+        let e = parse(
+            b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n",
+            Path::new("t.off"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("t.off:"), "{e}");
         let e = parse(b"OFF\n2000000000 2000000000 0\n0 0 0\n", Path::new("t.off"))
             .unwrap_err()
             .to_string();
         assert!(e.contains("cannot fit"), "{e}");
-        let e = parse(b"4OFF\n1 1 0\n", Path::new("t.off")).unwrap_err().to_string();
+        let e = parse(b"4OFF\n1 1 0\n", Path::new("t.off"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("4OFF"), "{e}");
     }
 }

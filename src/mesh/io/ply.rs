@@ -29,12 +29,14 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     let (vertex_el, face_el) = find_elements(&header, path)?;
     let vertex_count = header.elements[vertex_el].count;
     if vertex_count > u32::MAX as usize {
-        return Err(invalid(path, format!("{vertex_count} vertices: more than 2^32-1")));
+        return Err(invalid(
+            path,
+            format!("{vertex_count} vertices: more than 2^32-1"),
+        ));
     }
     let roles = roles(&header);
     // Counts were checked against the body size by `parse_header`.
-    let mut builder =
-        MeshBuilder::with_capacity(vertex_count, header.elements[face_el].count);
+    let mut builder = MeshBuilder::with_capacity(vertex_count, header.elements[face_el].count);
     let body = &bytes[header.body_start..];
     let mut reader = Reader {
         vertex_el,
@@ -64,8 +66,8 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
 /// Indices of the `vertex` and `face` elements, checking they carry x/y/z and an index list.
 fn find_elements(header: &Header, path: &Path) -> Result<(usize, usize), MeshError> {
     let find = |name: &str| header.elements.iter().position(|e| e.name == name);
-    let vertex = find("vertex")
-        .ok_or_else(|| invalid(path, "PLY file has no 'vertex' element".into()))?;
+    let vertex =
+        find("vertex").ok_or_else(|| invalid(path, "PLY file has no 'vertex' element".into()))?;
     let face = find("face").ok_or_else(|| {
         invalid(
             path,
@@ -77,9 +79,17 @@ fn find_elements(header: &Header, path: &Path) -> Result<(usize, usize), MeshErr
             .properties
             .iter()
             .find(|p| p.name == axis)
-            .ok_or_else(|| invalid(path, format!("PLY 'vertex' element has no '{axis}' property")))?;
+            .ok_or_else(|| {
+                invalid(
+                    path,
+                    format!("PLY 'vertex' element has no '{axis}' property"),
+                )
+            })?;
         if !matches!(p.kind, PropertyKind::Scalar(_)) {
-            return Err(invalid(path, format!("PLY vertex property '{axis}' is a list")));
+            return Err(invalid(
+                path,
+                format!("PLY vertex property '{axis}' is a list"),
+            ));
         }
     }
     let list = header.elements[face]
@@ -93,7 +103,10 @@ fn find_elements(header: &Header, path: &Path) -> Result<(usize, usize), MeshErr
             )
         })?;
     if !matches!(list.kind, PropertyKind::List { .. }) {
-        return Err(invalid(path, format!("PLY face property '{}' is not a list", list.name)));
+        return Err(invalid(
+            path,
+            format!("PLY face property '{}' is not a list", list.name),
+        ));
     }
     Ok((vertex, face))
 }
@@ -233,7 +246,8 @@ impl Source for AsciiSource<'_> {
     }
 
     fn can_hold(&self, n: usize, _ty: Scalar) -> bool {
-        n.checked_mul(2).is_some_and(|b| b <= self.0.remaining() + 1)
+        n.checked_mul(2)
+            .is_some_and(|b| b <= self.0.remaining() + 1)
     }
 
     fn record_line(&mut self, _index: usize) -> usize {
@@ -267,10 +281,11 @@ impl Reader<'_> {
         for (ei, element) in header.elements.iter().enumerate() {
             for r in 0..element.count {
                 let line = src.record_line(r);
-                self.read_record(ei, element, &roles[ei], src).map_err(|m| {
-                    let kind = src.kind();
-                    parse_error(path, line, format!("{kind}{} {}: {m}", element.name, r + 1))
-                })?;
+                self.read_record(ei, element, &roles[ei], src)
+                    .map_err(|m| {
+                        let kind = src.kind();
+                        parse_error(path, line, format!("{kind}{} {}: {m}", element.name, r + 1))
+                    })?;
             }
         }
         Ok(())
@@ -357,10 +372,17 @@ mod tests {
         let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
             property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
         let bad = format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n");
-        let e = parse(bad.as_bytes(), Path::new("t.ply")).unwrap_err().to_string();
+        let e = parse(bad.as_bytes(), Path::new("t.ply"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("t.ply:13:") && e.contains("face 1"), "{e}");
         let bad = format!("{head}0 0 0\n1 zz 0\n0 1 0\n3 0 1 2\n");
-        let e = parse(bad.as_bytes(), Path::new("t.ply")).unwrap_err().to_string();
-        assert!(e.contains("t.ply:11:") && e.contains("vertex 2") && e.contains("zz"), "{e}");
+        let e = parse(bad.as_bytes(), Path::new("t.ply"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.ply:11:") && e.contains("vertex 2") && e.contains("zz"),
+            "{e}"
+        );
     }
 }

@@ -214,7 +214,12 @@ fn parse_element<'a>(tokens: &mut impl Iterator<Item = &'a [u8]>) -> Result<Elem
     let count = std::str::from_utf8(count)
         .ok()
         .and_then(|c| c.parse::<usize>().ok())
-        .ok_or_else(|| format!("element count '{}' is not a non-negative integer", show(count)))?;
+        .ok_or_else(|| {
+            format!(
+                "element count '{}' is not a non-negative integer",
+                show(count)
+            )
+        })?;
     Ok(Element {
         name: String::from_utf8_lossy(name).into_owned(),
         count,
@@ -259,7 +264,12 @@ fn check_counts(header: &Header, body_len: usize, path: &Path) -> Result<(), Mes
     let needs: Vec<(u128, &Element)> = header
         .elements
         .iter()
-        .map(|e| (e.count as u128 * e.min_record_bytes(header.encoding) as u128, e))
+        .map(|e| {
+            (
+                e.count as u128 * e.min_record_bytes(header.encoding) as u128,
+                e,
+            )
+        })
         .collect();
     let needed: u128 = needs.iter().map(|(n, _)| n).sum();
     // The last ASCII value needs no separator.

@@ -118,7 +118,9 @@ fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
                 }
                 let mut p = [0f32; 3];
                 for c in &mut p {
-                    let t = tokens.next().ok_or_else(|| err("'vertex' needs x y z".into()))?;
+                    let t = tokens
+                        .next()
+                        .ok_or_else(|| err("'vertex' needs x y z".into()))?;
                     // Parsed as f64 then narrowed, so welding matches binary STL's f32 precision.
                     *c = parse_f64(t).map_err(err)? as f32;
                 }
@@ -139,7 +141,11 @@ fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         }
     }
     if in_facet {
-        return Err(parse_error(path, facet_line, "facet is never closed ('endfacet' missing)"));
+        return Err(parse_error(
+            path,
+            facet_line,
+            "facet is never closed ('endfacet' missing)",
+        ));
     }
     Ok(builder.finish())
 }
@@ -171,7 +177,9 @@ mod tests {
         let m = super::super::clean_up(parse(&binary(&tris, 2), Path::new("t.stl")).unwrap());
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [1, 2, 3]]);
-        let e = parse(&binary(&tris, 3), Path::new("t.stl")).unwrap_err().to_string();
+        let e = parse(&binary(&tris, 3), Path::new("t.stl"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("claims 3") && e.contains("t.stl"), "{e}");
         let e = parse(&binary(&[], 2_000_000_000), Path::new("t.stl")).unwrap_err();
         assert!(e.to_string().contains("claims 2000000000"), "{e}");
@@ -184,7 +192,9 @@ mod tests {
         let m = parse(s.as_bytes(), Path::new("t.stl")).unwrap();
         assert_eq!((m.positions.len(), m.triangles.len()), (3, 1));
         let bad = s.replace("vertex 1 0 0", "vertex 1 x 0");
-        let e = parse(bad.as_bytes(), Path::new("t.stl")).unwrap_err().to_string();
+        let e = parse(bad.as_bytes(), Path::new("t.stl"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("t.stl:5:"), "{e}");
     }
 }

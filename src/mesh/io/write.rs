@@ -66,7 +66,8 @@ fn write_ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         rec[0] = 3;
         for (k, &v) in t.iter().enumerate() {
             // PLY's `int` is signed: indices above 2^31-1 cannot be written in it.
-            let v = i32::try_from(v).map_err(|_| io::Error::other("vertex index exceeds 2^31-1"))?;
+            let v =
+                i32::try_from(v).map_err(|_| io::Error::other("vertex index exceeds 2^31-1"))?;
             rec[1 + 4 * k..5 + 4 * k].copy_from_slice(&v.to_le_bytes());
         }
         w.write_all(&rec)?;

@@ -1,0 +1,514 @@
+//! The blob cloud as a participating medium: f32 SoA blobs, ray gathering, the noisy density
+//! and the per-frame light grid.
+//!
+//! In: a frame's [`Blob`]s (f64; slice index = identity) and [`RenderSettings`]. Out:
+//! [`BlobMedium`], a [`Medium`] for the integrator.
+//!
+//! Density. With `G(x) = Σ f_i(x)` and iso-level `t`, the field value `g = G/t` is perturbed by
+//! fractal noise and pushed through a smoothstep across the soft edge:
+//!
+//! ```text
+//! σ_t(x) = σ · smoothstep(1 − k·edge, 1 + k·edge, g + k · amplitude · e(g) · n(x)),  σ = density / L
+//! e(g) = clamp(1 − 0.75 (g − 1), 0.25, 1)          (noise erodes the edge more than the core)
+//! n(x) = Σ_i w_i fbm(N_i x + o_i) / Σ_i w_i,  w_i = max(f_i − ½ max_j f_j, 0)
+//! k(x) = Σ_i w_i k_i / Σ_i w_i
+//! ```
+//!
+//! `k_i` is blob `i`'s field slope `|∂f_i/∂ρ|` on its own iso-surface relative to the canonical
+//! blob's (`A = 1, B = 2`: slope 4), clamped to `[¼, 16]`. Fitted blobs with a small `A` and a
+//! large `B` have a much steeper field; without `k` their edge would be hard and their noise
+//! invisible. With it, edge width and noise relief are about the same fraction of every blob.
+//!
+//! `N_i = (frequency / L)·R_iᵀ(x − c_i)` is blob `i`'s local frame in units of `L` (the length
+//! scale) and `o_i` a seeded offset drawn for the blob's index, so the texture moves and turns
+//! with its blob. The weights are continuous in `x` and keep only the dominant blobs (those
+//! above half the strongest), so a sample evaluates one to three noise stacks. Noise is skipped
+//! where it cannot change the result (`g` far below or above the edge).
+
+use glam::{Mat3A, Vec3A};
+use rand::RngExt;
+use rayon::prelude::*;
+
+use super::camera::{Frustum, Ray};
+use super::light_grid::{GridShape, LightGrid};
+use super::medium::Medium;
+use super::noise::fbm;
+use super::settings::RenderSettings;
+use crate::blobby::{Blob, THRESHOLD};
+use crate::rng::{Stream, item_rng};
+
+/// Parameters `(t0, t1)` with `t0 ≥ 0` where the ray `o + t·d` is inside the unit ball
+/// `|p| < 1`; `o` and `d` are in the ellipsoid's unit frame (`d` need not be unit length, and
+/// `t` is then the same parameter as in world space). `None` on a miss, a tangent touch, a ball
+/// entirely behind the origin, or a zero direction (its own branch: the ray does not move).
+#[inline]
+pub fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f32, f32)> {
+    let a = local_dir.length_squared();
+    if a <= f32::MIN_POSITIVE {
+        return None;
+    }
+    let b = local_origin.dot(local_dir);
+    let c = local_origin.length_squared() - 1.0;
+    let disc = b * b - a * c;
+    if disc <= 0.0 {
+        return None;
+    }
+    // Numerically stable roots: q = −(b + sign(b)√disc), t = q/a and c/q.
+    let q = -(b + disc.sqrt().copysign(b));
+    let (r0, r1) = (q / a, if q != 0.0 { c / q } else { q / a });
+    let (t0, t1) = (r0.min(r1), r0.max(r1));
+    (t1 > 0.0).then_some((t0.max(0.0), t1))
+}
+
+/// Most blobs whose weights enter the noise blend at one sample (the field still sums all).
+const MAX_ACTIVE: usize = 24;
+
+/// One blob crossed by the current ray: its span and its frames as affine functions of `t`.
+#[derive(Clone, Copy, Debug)]
+struct Hit {
+    t0: f32,
+    t1: f32,
+    b2: f32,
+    /// Edge and noise gain `k_i`.
+    gain: f32,
+    /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
+    o: Vec3A,
+    d: Vec3A,
+    /// Noise coordinates `no + t·nd`.
+    no: Vec3A,
+    nd: Vec3A,
+}
+
+/// Per-thread scratch of [`BlobMedium`].
+#[derive(Debug, Default)]
+pub struct BlobScratch {
+    tile: Vec<u32>,
+    hits: Vec<Hit>,
+    intervals: Vec<[f32; 2]>,
+}
+
+/// Density parameters, already in world units.
+#[derive(Clone, Copy, Debug)]
+struct DensityParams {
+    /// Extinction inside the cloud, per world unit.
+    sigma: f32,
+    edge: f32,
+    amplitude: f32,
+    octaves: u32,
+    inv_threshold: f32,
+}
+
+impl DensityParams {
+    /// Noise erosion weight `e(g)`.
+    #[inline]
+    fn erosion(g: f32) -> f32 {
+        (1.0 - 0.75 * (g - 1.0)).clamp(0.25, 1.0)
+    }
+
+    /// `σ_t` for normalised field `g` and gain `k`; `noise()` (in `[−1, 1]`) is called only
+    /// when it can change the result.
+    #[inline]
+    fn extinction(&self, g: f32, k: f32, noise: impl FnOnce() -> f32) -> f32 {
+        let amp = self.amplitude * Self::erosion(g) * k;
+        let edge = self.edge * k;
+        if g + amp <= 1.0 - edge {
+            return 0.0;
+        }
+        if g - amp >= 1.0 + edge {
+            return self.sigma;
+        }
+        let v = if amp > 0.0 { g + amp * noise() } else { g };
+        self.sigma * smoothstep(1.0 - edge, 1.0 + edge, v)
+    }
+}
+
+/// Edge and noise gain of a blob: its field slope `|∂f/∂ρ| = 4Bρ/(1+A)` at its own iso-surface
+/// `ρ² = (1+A)(1 − 1/B)`, over the canonical blob's slope 4, clamped to `[¼, 16]`; 1 when the
+/// blob alone never reaches the iso-level (`B ≤ 1`).
+fn gain(a: f64, b: f64) -> f32 {
+    if b <= 1.0 {
+        return 1.0;
+    }
+    let rho = ((1.0 + a) * (1.0 - 1.0 / b)).sqrt();
+    ((4.0 * b * rho / (1.0 + a)) / 4.0).clamp(0.25, 16.0) as f32
+}
+
+/// `smoothstep` over `[lo, hi]`; a step at `lo` when the range is empty.
+#[inline]
+fn smoothstep(lo: f32, hi: f32, v: f32) -> f32 {
+    if hi <= lo {
+        return if v > lo { 1.0 } else { 0.0 };
+    }
+    let x = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// The blob cloud of one frame (live blobs only, SoA, f32) with its light grid.
+#[derive(Clone, Debug)]
+pub struct BlobMedium {
+    center: Vec<Vec3A>,
+    /// `diag(1/(s√(1+A)))·Rᵀ`: world offset → unit-support coordinates.
+    unit_from_world: Vec<Mat3A>,
+    /// `(frequency/L)·Rᵀ`: world offset → noise coordinates (before the offset).
+    noise_from_world: Vec<Mat3A>,
+    noise_offset: Vec<Vec3A>,
+    b2: Vec<f32>,
+    /// Edge and noise gain `k_i` (see the module doc).
+    gain: Vec<f32>,
+    /// Bounding-ball radius of the support.
+    radius: Vec<f32>,
+    lo: Vec<Vec3A>,
+    hi: Vec<Vec3A>,
+    params: DensityParams,
+    step: f32,
+    grid: Option<LightGrid>,
+}
+
+impl BlobMedium {
+    /// Prepare `blobs` for rendering with `settings`: convert, derive the step and build the
+    /// light grid. Dead blobs (`B = 0`, a zero or non-finite size) are dropped here.
+    pub fn new(settings: &RenderSettings, blobs: &[Blob]) -> BlobMedium {
+        let mut m = BlobMedium::without_light(settings, blobs);
+        m.grid = m.build_light_grid(settings);
+        m
+    }
+
+    /// Like [`BlobMedium::new`] but with no light grid (all light depths 0): for profiling.
+    pub fn without_light(settings: &RenderSettings, blobs: &[Blob]) -> BlobMedium {
+        let length = settings.length_scale.max(1e-12);
+        let noise = settings.cloud.noise;
+        let freq = noise.frequency / length;
+        let mut m = BlobMedium {
+            center: Vec::new(),
+            unit_from_world: Vec::new(),
+            noise_from_world: Vec::new(),
+            noise_offset: Vec::new(),
+            b2: Vec::new(),
+            gain: Vec::new(),
+            radius: Vec::new(),
+            lo: Vec::new(),
+            hi: Vec::new(),
+            params: DensityParams {
+                sigma: settings.cloud.density.max(0.0) / length,
+                edge: settings.cloud.edge.max(0.0),
+                amplitude: noise.amplitude.max(0.0),
+                octaves: noise.octaves.min(10),
+                inv_threshold: (1.0 / THRESHOLD) as f32,
+            },
+            step: 0.0,
+            grid: None,
+        };
+        let mut radii = Vec::new();
+        for (index, blob) in blobs.iter().enumerate() {
+            let finite = blob.center.is_finite()
+                && blob.semi_axes.is_finite()
+                && blob.rotation.is_finite()
+                && blob.a.is_finite()
+                && blob.b.is_finite();
+            if !finite || !blob.is_live() || blob.a <= 0.0 {
+                continue;
+            }
+            let support = (blob.semi_axes * (1.0 + blob.a).sqrt()).as_vec3();
+            let world_from_local = Mat3A::from_quat(blob.rotation.as_quat().normalize());
+            let local_from_world = world_from_local.transpose();
+            let center = Vec3A::from(blob.center.as_vec3());
+            // Column j of R·diag(s) is the j-th support axis; its |row i| is the half extent.
+            let axes = Mat3A::from_cols(
+                world_from_local.x_axis * support.x,
+                world_from_local.y_axis * support.y,
+                world_from_local.z_axis * support.z,
+            )
+            .transpose();
+            let half = Vec3A::new(
+                axes.x_axis.length(),
+                axes.y_axis.length(),
+                axes.z_axis.length(),
+            );
+            let mut rng = item_rng(settings.seed, Stream::Noise, index as u64);
+            let offset = Vec3A::new(
+                rng.random_range(-128.0..128.0),
+                rng.random_range(-128.0..128.0),
+                rng.random_range(-128.0..128.0),
+            );
+            m.center.push(center);
+            m.unit_from_world
+                .push(Mat3A::from_diagonal(support.recip()) * local_from_world);
+            m.noise_from_world.push(local_from_world * freq);
+            m.noise_offset.push(offset);
+            m.b2.push((blob.b * blob.b) as f32);
+            m.gain.push(gain(blob.a, blob.b.abs()));
+            m.radius.push(support.max_element());
+            m.lo.push(center - half);
+            m.hi.push(center + half);
+            radii.push((support.x * support.y * support.z).cbrt());
+        }
+        m.step = Self::step_for(settings, &mut radii);
+        m
+    }
+
+    /// March step: `step_scale ×` the median blob's support radius, clamped to
+    /// `[L/2000, L/16]` (`L` the length scale).
+    fn step_for(settings: &RenderSettings, radii: &mut [f32]) -> f32 {
+        let length = settings.length_scale.max(1e-12);
+        if radii.is_empty() {
+            return length / 16.0;
+        }
+        radii.sort_by(f32::total_cmp);
+        let typical = radii[radii.len() / 2];
+        (settings.quality.step_scale * typical).clamp(length / 2000.0, length / 16.0)
+    }
+
+    /// Number of live blobs.
+    pub fn len(&self) -> usize {
+        self.center.len()
+    }
+
+    /// True when no blob is live.
+    pub fn is_empty(&self) -> bool {
+        self.center.is_empty()
+    }
+
+    /// Union of the live supports' bounds, `None` when empty.
+    pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        if self.is_empty() {
+            return None;
+        }
+        let lo = self
+            .lo
+            .iter()
+            .fold(Vec3A::splat(f32::MAX), |a, &b| a.min(b));
+        let hi = self
+            .hi
+            .iter()
+            .fold(Vec3A::splat(f32::MIN), |a, &b| a.max(b));
+        Some((lo, hi))
+    }
+
+    /// The light grid (`None` without live blobs or for [`BlobMedium::without_light`]).
+    pub fn light_grid(&self) -> Option<&LightGrid> {
+        self.grid.as_ref()
+    }
+
+    /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
+    /// merged spans into `intervals`.
+    fn gather(&self, candidates: &[u32], ray: &Ray, hits: &mut Vec<Hit>, ivs: &mut Vec<[f32; 2]>) {
+        hits.clear();
+        ivs.clear();
+        for &i in candidates {
+            let i = i as usize;
+            let m = self.unit_from_world[i];
+            let rel = ray.origin - self.center[i];
+            let (o, d) = (m * rel, m * ray.dir);
+            if let Some((t0, t1)) = ray_ellipsoid(o, d) {
+                let n = self.noise_from_world[i];
+                hits.push(Hit {
+                    t0,
+                    t1,
+                    b2: self.b2[i],
+                    gain: self.gain[i],
+                    o,
+                    d,
+                    no: n * rel + self.noise_offset[i],
+                    nd: n * ray.dir,
+                });
+            }
+        }
+        hits.sort_unstable_by(|a, b| a.t0.total_cmp(&b.t0));
+        for h in hits.iter() {
+            match ivs.last_mut() {
+                Some(last) if h.t0 <= last[1] => last[1] = last[1].max(h.t1),
+                _ => ivs.push([h.t0, h.t1]),
+            }
+        }
+    }
+
+    /// `σ_t` at parameter `t` of the ray whose `hits` were gathered.
+    #[inline]
+    fn density(&self, hits: &[Hit], t: f32) -> f32 {
+        let mut g = 0.0;
+        let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
+        let mut n = 0;
+        let mut fmax = 0.0f32;
+        for (k, h) in hits.iter().enumerate() {
+            if h.t0 > t {
+                break;
+            }
+            if t > h.t1 {
+                continue;
+            }
+            let u = (h.o + h.d * t).length_squared();
+            if u < 1.0 {
+                let w = 1.0 - u;
+                let f = h.b2 * w * w;
+                g += f;
+                fmax = fmax.max(f);
+                if n < MAX_ACTIVE {
+                    act[n] = (f, k as u32);
+                    n += 1;
+                }
+            }
+        }
+        if g <= 0.0 {
+            return 0.0;
+        }
+        let p = &self.params;
+        let (mut ksum, mut wsum) = (0.0, 0.0);
+        for &(f, k) in &act[..n] {
+            let w = f - 0.5 * fmax;
+            if w > 0.0 {
+                ksum += w * hits[k as usize].gain;
+                wsum += w;
+            }
+        }
+        p.extinction(g * p.inv_threshold, ksum / wsum, || {
+            let mut sum = 0.0;
+            for &(f, k) in &act[..n] {
+                let w = f - 0.5 * fmax;
+                if w > 0.0 {
+                    let h = &hits[k as usize];
+                    sum += w * fbm(h.no + h.nd * t, p.octaves);
+                }
+            }
+            (sum / wsum).clamp(-1.0, 1.0)
+        })
+    }
+
+    /// Sample `σ_t` on the light grid's nodes (rows along +x are rays) and sweep the depths.
+    fn build_light_grid(&self, settings: &RenderSettings) -> Option<LightGrid> {
+        let (lo, hi) = self.bounds()?;
+        let shape = GridShape::covering(lo, hi, settings.quality.shadow_grid);
+        let [nx, ny, _] = shape.dims;
+        let mut sigma = vec![0.0f32; shape.len()];
+        let (h, origin) = (shape.h, shape.origin);
+        sigma.par_chunks_mut(nx * ny).enumerate().for_each_init(
+            BlobScratch::default,
+            |s, (k, slice)| {
+                let z = origin.z + h * k as f32;
+                s.tile.clear();
+                s.tile.extend(
+                    (0..self.len() as u32)
+                        .filter(|&i| self.lo[i as usize].z <= z && z <= self.hi[i as usize].z),
+                );
+                let mut row_candidates = Vec::with_capacity(s.tile.len());
+                for j in 0..ny {
+                    let y = origin.y + h * j as f32;
+                    row_candidates.clear();
+                    row_candidates.extend(
+                        s.tile
+                            .iter()
+                            .copied()
+                            .filter(|&i| self.lo[i as usize].y <= y && y <= self.hi[i as usize].y),
+                    );
+                    let ray = Ray {
+                        origin: Vec3A::new(origin.x, y, z),
+                        dir: Vec3A::X,
+                    };
+                    self.gather(&row_candidates, &ray, &mut s.hits, &mut s.intervals);
+                    let row = &mut slice[j * nx..(j + 1) * nx];
+                    for iv in &s.intervals {
+                        let first = (iv[0] / h).ceil() as usize;
+                        let last = ((iv[1] / h).floor() as usize).min(nx - 1);
+                        for (i, v) in row.iter_mut().enumerate().take(last + 1).skip(first) {
+                            *v = self.density(&s.hits, i as f32 * h);
+                        }
+                    }
+                }
+            },
+        );
+        let sun = Vec3A::from(settings.sun.direction)
+            .try_normalize()
+            .unwrap_or(Vec3A::NEG_Y);
+        Some(LightGrid::build(shape, &sigma, sun))
+    }
+}
+
+impl Medium for BlobMedium {
+    type Scratch = BlobScratch;
+
+    fn scratch(&self) -> BlobScratch {
+        BlobScratch::default()
+    }
+
+    fn begin_tile(&self, frustum: &Frustum, s: &mut BlobScratch) {
+        s.tile.clear();
+        s.tile.extend((0..self.len() as u32).filter(|&i| {
+            frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
+        }));
+    }
+
+    fn begin_ray(&self, ray: &Ray, s: &mut BlobScratch) {
+        let BlobScratch {
+            tile,
+            hits,
+            intervals,
+        } = s;
+        self.gather(tile, ray, hits, intervals);
+    }
+
+    fn intervals<'s>(&self, s: &'s BlobScratch) -> &'s [[f32; 2]] {
+        &s.intervals
+    }
+
+    #[inline]
+    fn extinction(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> f32 {
+        self.density(&s.hits, t)
+    }
+
+    #[inline]
+    fn light_depths(&self, x: Vec3A) -> [f32; 2] {
+        self.grid.as_ref().map_or([0.0, 0.0], |g| g.lookup(x))
+    }
+
+    fn step(&self) -> f32 {
+        self.step
+    }
+
+    fn max_extinction(&self) -> f32 {
+        self.params.sigma
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ray_ellipsoid_cases() {
+        // Through the centre from outside.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z).unwrap();
+        assert!((t0 - 2.0).abs() < 1e-6 && (t1 - 4.0).abs() < 1e-6);
+        // Non-unit direction: t scales inversely.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z * 2.0).unwrap();
+        assert!((t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-6);
+        // From inside: starts at 0.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.5, 0.0, 0.0), Vec3A::X).unwrap();
+        assert!(t0 == 0.0 && (t1 - 0.5).abs() < 1e-6);
+        // Behind, miss, zero direction.
+        assert!(ray_ellipsoid(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z).is_none());
+        assert!(ray_ellipsoid(Vec3A::new(0.0, 1.5, -3.0), Vec3A::Z).is_none());
+        assert!(ray_ellipsoid(Vec3A::ZERO, Vec3A::ZERO).is_none());
+    }
+
+    #[test]
+    fn canonical_blob_has_unit_gain() {
+        for a in [0.3, 1.0, 2.0] {
+            assert!((gain(a, (1.0 + a) / a) - 1.0 / a as f32).abs() < 1e-6);
+        }
+        assert_eq!(gain(1.0, 2.0), 1.0);
+        assert_eq!(gain(1.0, 0.5), 1.0);
+        // A steep fitted blob (A = 0.05, B = 9.48): about 8.7 times the canonical slope.
+        assert!(
+            (gain(0.05, 9.48) - 8.75).abs() < 0.05,
+            "{}",
+            gain(0.05, 9.48)
+        );
+    }
+
+    #[test]
+    fn smoothstep_edges() {
+        assert_eq!(smoothstep(0.75, 1.25, 0.5), 0.0);
+        assert_eq!(smoothstep(0.75, 1.25, 1.5), 1.0);
+        assert!((smoothstep(0.75, 1.25, 1.0) - 0.5).abs() < 1e-6);
+        assert_eq!(smoothstep(1.0, 1.0, 1.01), 1.0);
+    }
+}

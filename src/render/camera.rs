@@ -1,0 +1,154 @@
+//! Pinhole camera rays and per-tile view frusta.
+//!
+//! In: [`Camera`] (look-at, vertical field of view) and the image size. Out: unit ray
+//! directions through pixel positions (pixel `(x, y)` covers `[x, x+1) × [y, y+1)`, top row
+//! first, +Y up, right-handed: the camera looks down its −Z), and [`Frustum`]s bounding the
+//! rays of a tile, used to cull blobs once per tile.
+
+use glam::Vec3A;
+
+use super::settings::Camera;
+
+/// A ray `origin + t·dir`, `dir` unit length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start point.
+    pub origin: Vec3A,
+    /// Unit direction.
+    pub dir: Vec3A,
+}
+
+impl Ray {
+    /// The point at parameter `t` (a distance, as `dir` is unit).
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3A {
+        self.origin + self.dir * t
+    }
+}
+
+/// The camera's orthonormal frame and image-plane scale.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraRays {
+    /// Eye position.
+    pub position: Vec3A,
+    /// Unit view direction.
+    pub forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+    /// `tan(fov/2)`: half the image-plane height at distance 1.
+    tan_half: f32,
+    width: f32,
+    height: f32,
+}
+
+impl CameraRays {
+    /// The frame for `camera` and a `width × height` image. Degenerate input gets a fallback:
+    /// `look_at == position` looks down −Z; an `up` parallel to the view uses +Z (or +X) as up.
+    pub fn new(camera: &Camera, width: u32, height: u32) -> CameraRays {
+        let position = Vec3A::from(camera.position);
+        let forward = (Vec3A::from(camera.look_at) - position)
+            .try_normalize()
+            .unwrap_or(Vec3A::NEG_Z);
+        let right = [Vec3A::from(camera.up), Vec3A::Y, Vec3A::Z, Vec3A::X]
+            .into_iter()
+            .find_map(|up| forward.cross(up).try_normalize())
+            .unwrap_or(Vec3A::X);
+        let up = right.cross(forward);
+        let fov = camera.fov_deg.clamp(0.1, 179.0).to_radians();
+        CameraRays {
+            position,
+            forward,
+            right,
+            up,
+            tan_half: (0.5 * fov).tan(),
+            width: width.max(1) as f32,
+            height: height.max(1) as f32,
+        }
+    }
+
+    /// Unit direction through image position `(px, py)` in pixels (`(0, 0)` = top-left corner
+    /// of the image, `(w, h)` = bottom-right).
+    #[inline]
+    pub fn dir(&self, px: f32, py: f32) -> Vec3A {
+        let sy = (1.0 - 2.0 * py / self.height) * self.tan_half;
+        let sx = (2.0 * px / self.width - 1.0) * self.tan_half * self.width / self.height;
+        (self.forward + self.right * sx + self.up * sy).normalize()
+    }
+
+    /// The ray through the centre of pixel `(x, y)`.
+    #[inline]
+    pub fn pixel_ray(&self, x: u32, y: u32) -> Ray {
+        Ray {
+            origin: self.position,
+            dir: self.dir(x as f32 + 0.5, y as f32 + 0.5),
+        }
+    }
+
+    /// The frustum of the pixel rectangle `[x0, x1) × [y0, y1)`.
+    pub fn frustum(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Frustum {
+        let (x0, y0, x1, y1) = (x0 as f32, y0 as f32, x1 as f32, y1 as f32);
+        let c = [
+            self.dir(x0, y0),
+            self.dir(x1, y0),
+            self.dir(x1, y1),
+            self.dir(x0, y1),
+        ];
+        let mid = self.dir(0.5 * (x0 + x1), 0.5 * (y0 + y1));
+        let mut planes = [Vec3A::ZERO; 4];
+        for (e, plane) in planes.iter_mut().enumerate() {
+            let n = c[e].cross(c[(e + 1) % 4]).normalize_or_zero();
+            *plane = if n.dot(mid) < 0.0 { -n } else { n };
+        }
+        Frustum {
+            apex: self.position,
+            forward: self.forward,
+            planes,
+        }
+    }
+}
+
+/// Four side planes through the eye (inward normals) and the view direction.
+#[derive(Clone, Copy, Debug)]
+pub struct Frustum {
+    /// The eye.
+    pub apex: Vec3A,
+    /// Unit view direction (culls what is behind the eye).
+    pub forward: Vec3A,
+    /// Inward unit normals of the side planes.
+    pub planes: [Vec3A; 4],
+}
+
+impl Frustum {
+    /// Conservative: false only when the ball `(center, radius)` is certainly outside.
+    #[inline]
+    pub fn may_contain_ball(&self, center: Vec3A, radius: f32) -> bool {
+        let v = center - self.apex;
+        v.dot(self.forward) > -radius && self.planes.iter().all(|n| n.dot(v) > -radius)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn centre_pixel_looks_at_target_and_rows_go_down() {
+        let cam = Camera {
+            position: Vec3::new(0.0, 0.0, 5.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 40.0,
+        };
+        let rays = CameraRays::new(&cam, 64, 36);
+        assert!((rays.dir(32.0, 18.0) - Vec3A::NEG_Z).length() < 1e-6);
+        // Top edge is 20° above the axis, right edge further right (+X).
+        let top = rays.dir(32.0, 0.0);
+        assert!((top.y.atan2(-top.z).to_degrees() - 20.0).abs() < 1e-3);
+        assert!(rays.dir(64.0, 18.0).x > 0.0);
+        let f = rays.frustum(0, 0, 16, 16);
+        assert!(f.may_contain_ball(rays.dir(8.0, 8.0) * 3.0 + rays.position, 0.01));
+        assert!(!f.may_contain_ball(Vec3A::new(3.0, -3.0, 0.0), 0.1));
+        assert!(!f.may_contain_ball(Vec3A::new(0.0, 0.0, 9.0), 0.5));
+    }
+}

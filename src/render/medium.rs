@@ -1,0 +1,150 @@
+//! What the integrator marches through: the [`Medium`] contract, and [`Homogeneous`], an
+//! analytic constant-density ball or slab used to check the integrator against closed forms.
+//!
+//! The blob cloud ([`super::blobs::BlobMedium`]) is the production medium. `Medium` is a trait
+//! (not an enum) only so that the integrator is monomorphised per medium with no dispatch in the
+//! per-sample loop; outside code is not expected to add media.
+
+use glam::Vec3A;
+
+use super::camera::{Frustum, Ray};
+
+/// A participating medium as the integrator sees it.
+///
+/// Calling protocol per thread: [`Medium::begin_tile`] once per tile, then per ray
+/// [`Medium::begin_ray`], then [`Medium::extinction`] at increasing `t` inside
+/// [`Medium::intervals`].
+pub trait Medium: Sync {
+    /// Per-thread scratch, reused across tiles and rays (no allocation per ray once warm).
+    type Scratch: Send;
+
+    /// Fresh scratch for one thread.
+    fn scratch(&self) -> Self::Scratch;
+
+    /// Prepare for the rays inside `frustum` (e.g. cull the medium's pieces once per tile).
+    fn begin_tile(&self, frustum: &Frustum, scratch: &mut Self::Scratch);
+
+    /// Prepare for `ray` (which lies inside the last tile's frustum).
+    fn begin_ray(&self, ray: &Ray, scratch: &mut Self::Scratch);
+
+    /// Sorted, disjoint `[t0, t1]` (`0 ≤ t0 < t1`) outside which the last ray's extinction is
+    /// zero.
+    fn intervals<'s>(&self, scratch: &'s Self::Scratch) -> &'s [[f32; 2]];
+
+    /// Extinction `σ_t ≥ 0` (per unit length) at `x = ray.at(t)`, `t` inside the intervals.
+    fn extinction(&self, scratch: &Self::Scratch, t: f32, x: Vec3A) -> f32;
+
+    /// Optical depths `[toward the sun, straight up]` from `x`.
+    fn light_depths(&self, x: Vec3A) -> [f32; 2];
+
+    /// Coarse march step through empty parts of the intervals (world units).
+    fn step(&self) -> f32;
+
+    /// Upper bound of the extinction (sets the fine step inside the medium).
+    fn max_extinction(&self) -> f32;
+}
+
+/// Shape of a [`Homogeneous`] medium.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// A ball.
+    Ball {
+        /// Centre.
+        center: Vec3A,
+        /// Radius.
+        radius: f32,
+    },
+    /// The points `x` with `near ≤ normal·x ≤ far`.
+    Slab {
+        /// Unit normal.
+        normal: Vec3A,
+        /// Lower offset.
+        near: f32,
+        /// Upper offset.
+        far: f32,
+    },
+}
+
+impl Shape {
+    /// Parameters `[t0, t1]` (`t ≥ 0`) of the ray `origin + t·dir` inside the shape; `None` on a
+    /// miss or an empty overlap.
+    pub fn interval(&self, origin: Vec3A, dir: Vec3A) -> Option<(f32, f32)> {
+        match *self {
+            Shape::Ball { center, radius } => {
+                let inv = 1.0 / radius;
+                super::blobs::ray_ellipsoid((origin - center) * inv, dir * inv)
+            }
+            Shape::Slab { normal, near, far } => {
+                let (o, d) = (normal.dot(origin), normal.dot(dir));
+                let (t0, t1) = if d.abs() < 1e-12 {
+                    // Parallel to the slab: all or nothing.
+                    if (near..=far).contains(&o) {
+                        (0.0, f32::INFINITY)
+                    } else {
+                        return None;
+                    }
+                } else {
+                    let (a, b) = ((near - o) / d, (far - o) / d);
+                    (a.min(b), a.max(b))
+                };
+                let t0 = t0.max(0.0);
+                (t1 > t0).then_some((t0, t1))
+            }
+        }
+    }
+}
+
+/// Constant extinction inside a [`Shape`], with exact light depths. For tests and calibration.
+#[derive(Clone, Copy, Debug)]
+pub struct Homogeneous {
+    /// Where the medium is.
+    pub shape: Shape,
+    /// Extinction per unit length.
+    pub sigma_t: f32,
+    /// Unit direction the sunlight travels (must match the render settings).
+    pub sun_dir: Vec3A,
+    /// March step.
+    pub step: f32,
+}
+
+impl Medium for Homogeneous {
+    type Scratch = Vec<[f32; 2]>;
+
+    fn scratch(&self) -> Self::Scratch {
+        Vec::with_capacity(1)
+    }
+
+    fn begin_tile(&self, _: &Frustum, _: &mut Self::Scratch) {}
+
+    fn begin_ray(&self, ray: &Ray, scratch: &mut Self::Scratch) {
+        scratch.clear();
+        if let Some((t0, t1)) = self.shape.interval(ray.origin, ray.dir) {
+            scratch.push([t0, t1]);
+        }
+    }
+
+    fn intervals<'s>(&self, scratch: &'s Self::Scratch) -> &'s [[f32; 2]] {
+        scratch
+    }
+
+    fn extinction(&self, _: &Self::Scratch, _: f32, _: Vec3A) -> f32 {
+        self.sigma_t
+    }
+
+    fn light_depths(&self, x: Vec3A) -> [f32; 2] {
+        let depth = |dir: Vec3A| {
+            self.shape
+                .interval(x, dir)
+                .map_or(0.0, |(t0, t1)| self.sigma_t * (t1 - t0))
+        };
+        [depth(-self.sun_dir), depth(Vec3A::Y)]
+    }
+
+    fn step(&self) -> f32 {
+        self.step
+    }
+
+    fn max_extinction(&self) -> f32 {
+        self.sigma_t
+    }
+}

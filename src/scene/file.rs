@@ -1,0 +1,375 @@
+//! The scene file's serde types (RON), parsing with located errors, and validation.
+//!
+//! Every struct rejects unknown fields, and every field but `target` has a default (listed in
+//! `scenes/README.md`). Parsing enables RON's `implicit_some` (write `frames: (1, 24)`, not
+//! `Some((1, 24))`). Variants holding a settings struct take it in its own parentheses:
+//! `Aggregation((keyframes: 8))`, `Auto((azimuth_deg: 30.0))`; `Fit(mesh: "…")` is a struct
+//! variant and takes its fields directly.
+
+use std::path::Path;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::SceneError;
+use crate::animate::Animation;
+use crate::render::{CloudMaterial, Sky, Sun};
+
+/// A scene file as written (`Scene(...)`; the struct name may also be left out).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Scene")]
+pub struct SceneFile {
+    /// What the cloud becomes (the only required field).
+    pub target: Target,
+    /// The animation scheme.
+    #[serde(default)]
+    pub animation: Animation,
+    /// Camera.
+    #[serde(default)]
+    pub camera: CameraSpec,
+    /// Sun light.
+    #[serde(default)]
+    pub sun: Sun,
+    /// Sky (background and ambient light).
+    #[serde(default)]
+    pub sky: Sky,
+    /// Cloud medium.
+    #[serde(default)]
+    pub cloud: CloudMaterial,
+    /// Resolution, frame rate and length.
+    #[serde(default)]
+    pub shot: Shot,
+    /// Frames to render, 1-based and inclusive (`None` = the whole shot).
+    #[serde(default)]
+    pub frames: Option<(u32, u32)>,
+    /// Exposure in stops for the PNG frames.
+    #[serde(default)]
+    pub exposure: f32,
+    /// Where frames go.
+    #[serde(default)]
+    pub output: OutputSpec,
+    /// Seed of every random choice (animation, render jitter, noise).
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+/// The shape the cloud takes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Target {
+    /// A fitted model file (RON or encoded), relative to the scene file's folder.
+    Model(String),
+    /// A mesh fitted on first use and cached beside the output as `target-<hash>.ron`.
+    Fit {
+        /// Mesh path (relative to the scene file's folder) or `builtin:NAME`.
+        mesh: String,
+        /// Blobs to select.
+        #[serde(default = "default_blobs")]
+        blobs: usize,
+        /// Candidate ellipsoids.
+        #[serde(default = "default_candidates")]
+        candidates: usize,
+        /// Surface samples.
+        #[serde(default = "default_samples")]
+        samples: usize,
+        /// Seed of the fit.
+        #[serde(default = "default_seed")]
+        seed: u64,
+    },
+}
+
+fn default_blobs() -> usize {
+    300
+}
+fn default_candidates() -> usize {
+    2500
+}
+fn default_samples() -> usize {
+    60_000
+}
+
+/// The camera: automatic framing of the target, or fixed; optionally orbiting.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum CameraSpec {
+    /// Frame the target's bounding sphere from a direction.
+    Auto(AutoCamera),
+    /// An explicit pinhole camera (world units).
+    Fixed(FixedCamera),
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec::Auto(AutoCamera::default())
+    }
+}
+
+/// Automatic framing: look at the centre of the target's bounding box from `azimuth_deg`
+/// (0 = from +Z, 90 = from +X) and `elevation_deg` (above the horizon), at `distance` times
+/// the distance at which the bounding sphere just fills the narrower field of view.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AutoCamera {
+    /// Horizontal angle around +Y, degrees.
+    pub azimuth_deg: f32,
+    /// Angle above the horizon, degrees.
+    pub elevation_deg: f32,
+    /// Distance relative to the snug framing (> 0; 1 = bounding sphere fills the frame).
+    pub distance: f32,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f32,
+    /// Degrees the camera orbits around +Y over the shot (counter-clockwise seen from above).
+    pub orbit_deg: f32,
+}
+
+impl Default for AutoCamera {
+    fn default() -> Self {
+        AutoCamera {
+            azimuth_deg: 30.0,
+            elevation_deg: 15.0,
+            distance: 1.0,
+            fov_deg: 35.0,
+            orbit_deg: 0.0,
+        }
+    }
+}
+
+/// A fixed camera in the target's units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FixedCamera {
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Up hint.
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f32,
+    /// Degrees the camera orbits around the vertical axis through `look_at` over the shot.
+    pub orbit_deg: f32,
+}
+
+impl Default for FixedCamera {
+    fn default() -> Self {
+        FixedCamera {
+            position: Vec3::new(0.0, 1.2, 4.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 35.0,
+            orbit_deg: 0.0,
+        }
+    }
+}
+
+/// Resolution, frame rate and length of the shot.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Shot {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Frames per second.
+    pub fps: f64,
+    /// Length in seconds; the shot has `max(1, round(seconds · fps))` frames.
+    pub seconds: f64,
+}
+
+impl Default for Shot {
+    fn default() -> Self {
+        Shot {
+            width: 640,
+            height: 360,
+            fps: 24.0,
+            seconds: 4.0,
+        }
+    }
+}
+
+impl Shot {
+    /// Number of frames.
+    pub fn frame_count(&self) -> u32 {
+        ((self.seconds * self.fps).round() as u32).max(1)
+    }
+}
+
+/// An output image format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Format {
+    /// Linear HDR OpenEXR (RGBA + depth).
+    Exr,
+    /// Tone-mapped 8-bit sRGB PNG over the sky.
+    Png,
+}
+
+impl Format {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Exr => "exr",
+            Format::Png => "png",
+        }
+    }
+}
+
+/// Where and how frames are written.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSpec {
+    /// Output folder, relative to the current directory (default `renders/<scene name>`).
+    pub dir: Option<String>,
+    /// Frame name prefix (default: the scene file's name without extension).
+    pub name: Option<String>,
+    /// Formats written per frame.
+    pub formats: Vec<Format>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            dir: None,
+            name: None,
+            formats: vec![Format::Exr, Format::Png],
+        }
+    }
+}
+
+/// Parse scene text (`path` labels errors). Syntax and type errors carry line and column.
+pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
+    let options =
+        ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    options
+        .from_str::<SceneFile>(text)
+        .map_err(|e| SceneError::Parse {
+            path: path.to_path_buf(),
+            line: e.span.start.line,
+            column: e.span.start.col,
+            message: e.code.to_string(),
+        })
+}
+
+/// Check ranges and finiteness; errors name the field.
+pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
+    let bad = |field: &str, message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        message,
+    };
+    let finite = |field: &str, v: &[f32]| {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(bad(field, format!("must be finite, got {v:?}")))
+        }
+    };
+    if s.shot.width == 0 || s.shot.height == 0 {
+        return Err(bad(
+            "shot",
+            format!(
+                "width and height must be positive, got {}×{}",
+                s.shot.width, s.shot.height
+            ),
+        ));
+    }
+    for (name, v) in [("shot.fps", s.shot.fps), ("shot.seconds", s.shot.seconds)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(bad(name, format!("must be a positive number, got {v}")));
+        }
+    }
+    let n = s.shot.frame_count();
+    if let Some((a, b)) = s.frames {
+        if a == 0 || a > b || b > n {
+            return Err(bad(
+                "frames",
+                format!("need 1 ≤ first ≤ last ≤ {n} (the shot's frames), got ({a}, {b})"),
+            ));
+        }
+    }
+    finite("exposure", &[s.exposure])?;
+    let fov = |f: f32| {
+        if f.is_finite() && f > 0.0 && f < 180.0 {
+            Ok(())
+        } else {
+            Err(bad(
+                "camera.fov_deg",
+                format!("must be in (0, 180), got {f}"),
+            ))
+        }
+    };
+    match &s.camera {
+        CameraSpec::Auto(c) => {
+            finite("camera", &[c.azimuth_deg, c.elevation_deg, c.orbit_deg])?;
+            fov(c.fov_deg)?;
+            if !(c.distance.is_finite() && c.distance > 0.0) {
+                return Err(bad(
+                    "camera.distance",
+                    format!("must be positive, got {}", c.distance),
+                ));
+            }
+        }
+        CameraSpec::Fixed(c) => {
+            finite("camera", &[c.orbit_deg])?;
+            finite("camera.position", &c.position.to_array())?;
+            finite("camera.look_at", &c.look_at.to_array())?;
+            finite("camera.up", &c.up.to_array())?;
+            fov(c.fov_deg)?;
+            if c.position.distance(c.look_at) <= 0.0 {
+                return Err(bad(
+                    "camera",
+                    "position and look_at must differ".to_string(),
+                ));
+            }
+        }
+    }
+    finite("sun.direction", &s.sun.direction.to_array())?;
+    finite("sun.color", &s.sun.color.to_array())?;
+    finite("sun.intensity", &[s.sun.intensity])?;
+    if s.sun.direction.length() <= 0.0 {
+        return Err(bad("sun.direction", "must not be zero".to_string()));
+    }
+    let Sky::Gradient { zenith, horizon } = s.sky;
+    finite("sky.zenith", &zenith.to_array())?;
+    finite("sky.horizon", &horizon.to_array())?;
+    let c = &s.cloud;
+    finite(
+        "cloud",
+        &[
+            c.density,
+            c.edge,
+            c.albedo,
+            c.phase_g,
+            c.noise.amplitude,
+            c.noise.frequency,
+        ],
+    )?;
+    if s.output.formats.is_empty() {
+        return Err(bad(
+            "output.formats",
+            "list at least one format".to_string(),
+        ));
+    }
+    if let Target::Fit {
+        blobs,
+        candidates,
+        samples,
+        ..
+    } = &s.target
+        && (*blobs == 0 || *candidates == 0 || *samples < 100)
+    {
+        return Err(bad(
+            "target",
+            format!(
+                "need blobs ≥ 1, candidates ≥ 1 and samples ≥ 100, got {blobs}, {candidates}, {samples}"
+            ),
+        ));
+    }
+    s.animation.validate().map_err(|e| match e {
+        crate::animate::AnimateError::Invalid { field, message } => bad(&field, message),
+        other => bad("animation", other.to_string()),
+    })
+}

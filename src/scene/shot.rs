@@ -1,0 +1,308 @@
+//! Rendering a scene's shot to frame files, resumable.
+//!
+//! Frames are numbered from 1 and named `<name>_0001.<ext>` in the output folder (`--preview`
+//! writes to its `preview/` subfolder). Every file is written atomically, so a frame whose
+//! files all exist is finished and is skipped unless `force` is set; the target is not even
+//! loaded (nor fitted) when every requested frame is done.
+
+use std::ops::RangeInclusive;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::camera::camera_at;
+use super::target::{TargetOrigin, load_target};
+use super::{Scene, SceneError};
+use crate::animate::{self, Plan, Timeline, blob_bounds};
+use crate::blobby::{Blob, BlobModel};
+use crate::geometry::Aabb;
+use crate::progress::Timings;
+use crate::render::{self, Quality, RenderSettings};
+
+/// How to render a shot (the command line's choices).
+#[derive(Clone, Debug, Default)]
+pub struct RenderOptions {
+    /// 1-based inclusive frame range, overriding the scene's `frames`.
+    pub frames: Option<(u32, u32)>,
+    /// Output folder overriding the scene's `output.dir`.
+    pub output: Option<PathBuf>,
+    /// Quarter resolution (at least 64 px wide) with preview quality, in `<dir>/preview/`.
+    pub preview: bool,
+    /// Re-render frames whose files already exist.
+    pub force: bool,
+    /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
+    pub dump_blobs: bool,
+}
+
+/// What happened to one frame.
+#[derive(Clone, Debug)]
+pub struct FrameReport {
+    /// 1-based frame number.
+    pub frame: u32,
+    /// Frames in the shot.
+    pub of: u32,
+    /// True when the frame's files existed and it was skipped.
+    pub skipped: bool,
+    /// Seconds spent rendering and writing it (0 when skipped).
+    pub seconds: f64,
+}
+
+/// The outcome of a shot.
+#[derive(Clone, Debug)]
+pub struct ShotReport {
+    /// Folder the frames are in.
+    pub output_dir: PathBuf,
+    /// Frames rendered.
+    pub rendered: u32,
+    /// Frames skipped because they were done.
+    pub skipped: u32,
+    /// Where the target came from (`None` when every frame was already done).
+    pub target: Option<TargetOrigin>,
+    /// Wall time per stage (target, plan, render, write).
+    pub timings: Timings,
+}
+
+/// The resolved geometry of a shot: folder, frames, image size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShotSetup {
+    /// Output folder of the frames.
+    pub dir: PathBuf,
+    /// Folder of the target's fit cache: the output folder, also for previews (so a preview
+    /// and the final render share one fit).
+    pub cache_dir: PathBuf,
+    /// 1-based inclusive frames to render.
+    pub frames: RangeInclusive<u32>,
+    /// Frames in the shot.
+    pub total: u32,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+}
+
+/// Resolve folder, frame range and image size from the scene and options.
+pub fn shot_setup(scene: &Scene, opts: &RenderOptions) -> Result<ShotSetup, SceneError> {
+    let shot = &scene.file.shot;
+    let total = shot.frame_count();
+    let (a, b) = opts.frames.or(scene.file.frames).unwrap_or((1, total));
+    if a == 0 || a > b || b > total {
+        return Err(SceneError::Invalid {
+            path: scene.path.clone(),
+            field: "frames".into(),
+            message: format!("need 1 ≤ first ≤ last ≤ {total} (the shot's frames), got {a}..{b}"),
+        });
+    }
+    let cache_dir = opts
+        .output
+        .clone()
+        .unwrap_or_else(|| scene.output_dir.clone());
+    let mut dir = cache_dir.clone();
+    let (mut width, mut height) = (shot.width, shot.height);
+    if opts.preview {
+        dir = dir.join("preview");
+        let w = (width / 4).max(64).min(width);
+        height = ((height as f64 * w as f64 / width as f64).round() as u32).max(1);
+        width = w;
+    }
+    Ok(ShotSetup {
+        dir,
+        cache_dir,
+        frames: a..=b,
+        total,
+        width,
+        height,
+    })
+}
+
+/// The files of frame `frame` (1-based): one per format, plus the blob dump if asked.
+pub fn frame_paths(scene: &Scene, dir: &Path, frame: u32, dump_blobs: bool) -> Vec<PathBuf> {
+    let stem = format!("{}_{frame:04}", scene.name);
+    let mut v: Vec<PathBuf> = scene
+        .file
+        .output
+        .formats
+        .iter()
+        .map(|f| dir.join(format!("{stem}.{}", f.extension())))
+        .collect();
+    if dump_blobs {
+        v.push(dir.join(format!("{stem}.blobs.ron")));
+    }
+    v
+}
+
+/// A shot ready to render frames: the target, the planned animation and its bounds.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The target model.
+    pub model: BlobModel,
+    /// The planned animation.
+    pub plan: Plan,
+    /// Bounding box of the target's blobs (camera framing; its diagonal is the length unit).
+    pub bounds: Aabb,
+}
+
+/// Plan the scene's animation for `model`.
+pub fn prepare(scene: &Scene, model: BlobModel) -> Result<Prepared, SceneError> {
+    let shot = &scene.file.shot;
+    let timeline = Timeline {
+        frames: shot.frame_count() as usize,
+        fps: shot.fps,
+        hold_seconds: scene.file.animation.hold_seconds(),
+    };
+    let plan = animate::plan(&scene.file.animation, &model, timeline, scene.file.seed).map_err(
+        |source| SceneError::Animate {
+            scene: scene.path.clone(),
+            source,
+        },
+    )?;
+    let bounds = blob_bounds(&model.blobs);
+    Ok(Prepared {
+        model,
+        plan,
+        bounds,
+    })
+}
+
+/// Render settings of 0-based frame `k`.
+pub fn frame_settings(
+    scene: &Scene,
+    prep: &Prepared,
+    setup: &ShotSetup,
+    k: u32,
+    preview: bool,
+) -> RenderSettings {
+    let f = &scene.file;
+    let u = if setup.total > 1 {
+        k as f64 / (setup.total - 1) as f64
+    } else {
+        0.0
+    };
+    let aspect = setup.width as f32 / setup.height as f32;
+    RenderSettings {
+        width: setup.width,
+        height: setup.height,
+        camera: camera_at(&f.camera, &prep.bounds, aspect, u),
+        sun: f.sun,
+        sky: f.sky,
+        cloud: f.cloud,
+        exposure: f.exposure,
+        length_scale: prep.bounds.diagonal().max(1e-12) as f32,
+        seed: f.seed,
+        quality: if preview {
+            Quality::preview()
+        } else {
+            Quality::final_frame()
+        },
+    }
+}
+
+/// Render the shot: skip finished frames (unless `force`), render and write the rest,
+/// calling `on_frame` after each frame.
+pub fn render_shot(
+    scene: &Scene,
+    opts: &RenderOptions,
+    on_frame: &mut dyn FnMut(&FrameReport),
+) -> Result<ShotReport, SceneError> {
+    let setup = shot_setup(scene, opts)?;
+    let mut timings = Timings::default();
+    let done = |frame: u32| {
+        !opts.force
+            && frame_paths(scene, &setup.dir, frame, opts.dump_blobs)
+                .iter()
+                .all(|p| p.is_file())
+    };
+    let todo: Vec<u32> = setup.frames.clone().filter(|&f| !done(f)).collect();
+    let mut report = ShotReport {
+        output_dir: setup.dir.clone(),
+        rendered: 0,
+        skipped: 0,
+        target: None,
+        timings: Timings::default(),
+    };
+    if !todo.is_empty() {
+        let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
+        report.target = Some(origin);
+        let prep = timings.stage("plan", || prepare(scene, model))?;
+        let (mut render_s, mut write_s) = (0.0, 0.0);
+        for frame in setup.frames.clone() {
+            if !todo.contains(&frame) {
+                report.skipped += 1;
+                on_frame(&skipped(frame, setup.total));
+                continue;
+            }
+            let start = Instant::now();
+            let k = frame - 1;
+            let blobs = prep.plan.frame(k as usize);
+            let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
+            let image = render::render_frame(&settings, &blobs, k);
+            let rendered = Instant::now();
+            write_frame(scene, &setup.dir, frame, &image, &settings, opts, &blobs)?;
+            render_s += (rendered - start).as_secs_f64();
+            write_s += rendered.elapsed().as_secs_f64();
+            report.rendered += 1;
+            on_frame(&FrameReport {
+                frame,
+                of: setup.total,
+                skipped: false,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+        }
+        timings.stages.push(("render".into(), render_s));
+        timings.stages.push(("write".into(), write_s));
+    } else {
+        for frame in setup.frames.clone() {
+            report.skipped += 1;
+            on_frame(&skipped(frame, setup.total));
+        }
+    }
+    report.timings = timings;
+    Ok(report)
+}
+
+fn skipped(frame: u32, of: u32) -> FrameReport {
+    FrameReport {
+        frame,
+        of,
+        skipped: true,
+        seconds: 0.0,
+    }
+}
+
+/// Write one frame's files atomically; the blob dump (if any) is written last.
+fn write_frame(
+    scene: &Scene,
+    dir: &Path,
+    frame: u32,
+    image: &render::Frame,
+    settings: &RenderSettings,
+    opts: &RenderOptions,
+    blobs: &[Blob],
+) -> Result<(), SceneError> {
+    let paths = frame_paths(scene, dir, frame, opts.dump_blobs);
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| SceneError::Io { path, source }
+    };
+    for (format, path) in scene.file.output.formats.iter().zip(&paths) {
+        match format {
+            super::Format::Exr => render::output::write_exr(path, image).map_err(io(path))?,
+            super::Format::Png => {
+                render::output::write_png(path, image, settings).map_err(io(path))?
+            }
+        }
+    }
+    if opts.dump_blobs {
+        let path = paths.last().expect("dump path");
+        let text = blobs_to_ron(blobs);
+        crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
+    }
+    Ok(())
+}
+
+/// A frame's blob list as RON (a list of `Blob`s, index = identity).
+pub fn blobs_to_ron(blobs: &[Blob]) -> String {
+    let config = ron::ser::PrettyConfig::new()
+        .depth_limit(2)
+        .struct_names(true)
+        .new_line("\n");
+    ron::ser::to_string_pretty(&blobs, config).expect("blobs always serialize")
+}

@@ -1,0 +1,313 @@
+//! Animation schemes on blob models built in code (no fitting): exact last frame, clusters that
+//! start clear of their place, continuous paths, diffusion order and monotone visibility.
+
+use glam::{DQuat, DVec3, EulerRot};
+use nephele::animate::{
+    self, AggregationConfig, Animation, DiffusionConfig, Plan, Timeline, blob_bounds,
+};
+use nephele::blobby::model_file::MODEL_VERSION;
+use nephele::blobby::{Blob, BlobModel, SourceInfo};
+use nephele::decompose::Primitive;
+use nephele::geometry::Aabb;
+
+/// A big central blob, then `n − 1` blobs on an ellipsoidal shell (Fibonacci spiral), shrinking
+/// with the index like a greedy selection order.
+fn shell_model(n: usize) -> BlobModel {
+    let mut blobs = vec![Blob {
+        center: DVec3::new(0.0, 0.1, 0.0),
+        rotation: DQuat::IDENTITY,
+        semi_axes: DVec3::new(1.4, 1.0, 0.8),
+        a: 1.0,
+        b: 2.0,
+    }];
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 1..n {
+        let t = i as f64;
+        let y = 1.0 - 2.0 * (t - 0.5) / (n - 1) as f64;
+        let r = (1.0 - y * y).max(0.0).sqrt();
+        let a = golden * t;
+        let dir = DVec3::new(r * a.cos(), y, r * a.sin());
+        let size = 0.45 - 0.2 * t / n as f64;
+        blobs.push(Blob {
+            center: dir * DVec3::new(2.0, 1.5, 1.2),
+            rotation: DQuat::from_euler(EulerRot::XYZ, t * 0.7, t * 1.3, t * 0.2),
+            semi_axes: DVec3::new(size * 1.3, size, size * 0.8),
+            a: 0.8 + 0.01 * t,
+            b: 2.2,
+        });
+    }
+    BlobModel {
+        version: MODEL_VERSION,
+        primitive: Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: SourceInfo {
+            mesh: "test:shell".into(),
+            bounds: Aabb {
+                min: DVec3::new(-2.0, -1.5, -1.2),
+                max: DVec3::new(2.0, 1.5, 1.2),
+            },
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    }
+}
+
+fn timeline() -> Timeline {
+    Timeline {
+        frames: 72,
+        fps: 24.0,
+        hold_seconds: 0.25,
+    }
+}
+
+fn bits(b: &Blob) -> [u64; 12] {
+    let r = b.rotation;
+    [
+        b.center.x.to_bits(),
+        b.center.y.to_bits(),
+        b.center.z.to_bits(),
+        r.x.to_bits(),
+        r.y.to_bits(),
+        r.z.to_bits(),
+        r.w.to_bits(),
+        b.semi_axes.x.to_bits(),
+        b.semi_axes.y.to_bits(),
+        b.semi_axes.z.to_bits(),
+        b.a.to_bits(),
+        b.b.to_bits(),
+    ]
+}
+
+fn aggregation(model: &BlobModel, seed: u64) -> animate::AggregationPlan {
+    let anim = Animation::Aggregation(AggregationConfig::default());
+    match animate::plan(&anim, model, timeline(), seed).unwrap() {
+        Plan::Aggregation(p) => p,
+        Plan::Diffusion(_) => unreachable!(),
+    }
+}
+
+fn diffusion(model: &BlobModel) -> animate::DiffusionPlan {
+    let anim = Animation::Diffusion(DiffusionConfig::default());
+    match animate::plan(&anim, model, timeline(), 7).unwrap() {
+        Plan::Diffusion(p) => p,
+        Plan::Aggregation(_) => unreachable!(),
+    }
+}
+
+#[test]
+fn last_frame_is_the_model_bit_for_bit() {
+    let model = shell_model(60);
+    for anim in [
+        Animation::Aggregation(AggregationConfig::default()),
+        Animation::Diffusion(DiffusionConfig::default()),
+    ] {
+        let plan = animate::plan(&anim, &model, timeline(), 3).unwrap();
+        let last = plan.frame(timeline().frames - 1);
+        assert_eq!(last.len(), model.blobs.len());
+        for (a, b) in last.iter().zip(&model.blobs) {
+            assert_eq!(bits(a), bits(b));
+        }
+        // Every frame keeps the model's length (index = identity).
+        assert!((0..timeline().frames).all(|k| plan.frame(k).len() == model.blobs.len()));
+        // The first frame is not the target.
+        assert_ne!(plan.frame(0), model.blobs);
+    }
+}
+
+fn support_box(blobs: &[Blob], members: &[usize]) -> Aabb {
+    members
+        .iter()
+        .fold(Aabb::EMPTY, |b, &i| b.union(blobs[i].support_bounds()))
+}
+
+#[test]
+fn aggregation_clusters_start_clear_of_their_place() {
+    let model = shell_model(60);
+    let plan = aggregation(&model, 11);
+    let clusters = plan.clusters();
+    // The paper's six planes: up to 24 regions; the shell fills most of them.
+    assert!(
+        clusters.len() >= 16 && clusters.len() <= 24,
+        "{}",
+        clusters.len()
+    );
+    let mut seen = vec![false; model.blobs.len()];
+    for c in clusters {
+        for &i in &c.members {
+            assert!(!seen[i], "blob {i} in two clusters");
+            seen[i] = true;
+        }
+    }
+    assert!(seen.iter().all(|&s| s));
+    let first = plan.frame(0);
+    for (ci, c) in clusters.iter().enumerate() {
+        let start = support_box(&first, &c.members);
+        let end = support_box(&model.blobs, &c.members);
+        assert!(
+            !start.overlaps(&end),
+            "cluster {ci} starts overlapping its final box: {start:?} vs {end:?}"
+        );
+        assert!((c.direction.length() - 1.0).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn aggregation_paths_are_continuous() {
+    let model = shell_model(60);
+    let plan = aggregation(&model, 5);
+    let keys = plan.keyframes();
+    let k = keys.len();
+    assert_eq!(k, AggregationConfig::default().keyframes);
+    assert_eq!(keys[k - 1], model.blobs);
+    let tl = timeline();
+    let motion_frames = tl.motion_seconds() * tl.fps;
+    let frames: Vec<Vec<Blob>> = (0..tl.frames).map(|f| plan.frame(f)).collect();
+    for i in 0..model.blobs.len() {
+        let longest = (0..k - 1)
+            .map(|j| keys[j][i].center.distance(keys[j + 1][i].center))
+            .fold(0.0, f64::max);
+        // Catmull-Rom through keys at constant parameter speed: a frame moves at most ~1.5×
+        // the longest keyframe segment per keyframe interval.
+        let bound = 1.5 * longest * (k - 1) as f64 / motion_frames + 1e-9;
+        for f in 1..tl.frames {
+            let jump = frames[f][i].center.distance(frames[f - 1][i].center);
+            assert!(
+                jump <= bound,
+                "blob {i} jumps {jump} > {bound} at frame {f}"
+            );
+        }
+    }
+    // Frame 0 is keyframe 0.
+    for (a, b) in frames[0].iter().zip(&keys[0]) {
+        assert!(a.center.distance(b.center) < 1e-9);
+    }
+}
+
+#[test]
+fn aggregation_is_seeded() {
+    let model = shell_model(40);
+    let a = aggregation(&model, 1).frame(3);
+    assert_eq!(a, aggregation(&model, 1).frame(3));
+    assert_ne!(a, aggregation(&model, 2).frame(3));
+}
+
+#[test]
+fn aggregation_scales_to_a_thousand_blobs() {
+    let model = shell_model(1000);
+    let t = std::time::Instant::now();
+    let plan = aggregation(&model, 1);
+    let _ = plan.frame(10);
+    let secs = t.elapsed().as_secs_f64();
+    assert!(secs < 5.0, "planning 1000 blobs took {secs} s");
+    // Repulsion spread the blobs of the first keyframe: no two centres coincide.
+    let key0 = &plan.keyframes()[0];
+    let bounds = blob_bounds(key0);
+    assert!(bounds.diagonal() > blob_bounds(&model.blobs).diagonal());
+}
+
+fn live_count(blobs: &[Blob]) -> usize {
+    blobs.iter().filter(|b| b.is_live()).count()
+}
+
+#[test]
+fn diffusion_visible_count_never_decreases() {
+    let model = shell_model(60);
+    let plan = diffusion(&model);
+    let counts: Vec<usize> = (0..timeline().frames)
+        .map(|k| live_count(&plan.frame(k)))
+        .collect();
+    assert_eq!(counts[0], 1, "the first frame shows only blob I");
+    assert!(counts.windows(2).all(|w| w[0] <= w[1]), "{counts:?}");
+    assert_eq!(*counts.last().unwrap(), 60);
+}
+
+#[test]
+fn diffusion_respects_categories_and_pins_the_order() {
+    let model = shell_model(60);
+    let plan = diffusion(&model);
+    let order = plan.order();
+    let n2 = plan.category_ii_len();
+    assert_eq!(n2, 6, "10 % of 60");
+    assert_eq!(order[0], 0);
+    let mut ii: Vec<usize> = order[1..=n2].to_vec();
+    ii.sort_unstable();
+    assert_eq!(ii, (1..=n2).collect::<Vec<_>>());
+    assert_eq!(&order[n2 + 1..], &(n2 + 1..60).collect::<Vec<_>>()[..]);
+    // Frames of appearance follow the order: I, then II in order, then III together.
+    let appear = |i: usize| {
+        (0..timeline().frames)
+            .find(|&k| plan.frame(k)[i].is_live())
+            .unwrap()
+    };
+    let times: Vec<usize> = order.iter().map(|&i| appear(i)).collect();
+    assert!(times.windows(2).all(|w| w[0] <= w[1]), "{times:?}");
+    assert!(times[n2] < times[n2 + 1], "category III appears after II");
+    assert!(times[n2 + 1..].iter().all(|&t| t == times[n2 + 1]));
+    // Pinned: the order of category II for this model.
+    assert_eq!(&order[..=n2], &[0, 4, 1, 6, 2, 5, 3]);
+    // And for a 100-blob model (category II = blobs 1..=10).
+    let order = diffusion(&shell_model(100)).order().to_vec();
+    assert_eq!(&order[..11], &[0, 4, 9, 7, 2, 1, 6, 10, 5, 8, 3]);
+}
+
+#[test]
+fn diffusion_blobs_grow_out_of_a_visible_blob() {
+    let model = shell_model(60);
+    let plan = diffusion(&model);
+    let order = plan.order().to_vec();
+    for (pos, &i) in order.iter().enumerate().skip(1).take(8) {
+        let k = (0..timeline().frames)
+            .find(|&k| plan.frame(k)[i].is_live())
+            .unwrap();
+        let frame = plan.frame(k);
+        let b = frame[i];
+        // Just appeared: small, and near a blob that was visible before it.
+        assert!(b.semi_axes.max_element() < model.blobs[i].semi_axes.max_element());
+        let earlier = &order[..pos.min(1 + plan.category_ii_len())];
+        let near = earlier
+            .iter()
+            .map(|&j| model.blobs[j].center.distance(b.center))
+            .fold(f64::INFINITY, f64::min);
+        let own = model.blobs[i].center.distance(b.center);
+        assert!(near < own, "blob {i} should start near a visible blob");
+    }
+}
+
+#[test]
+fn bad_settings_are_errors() {
+    let model = shell_model(10);
+    let anim = Animation::Aggregation(AggregationConfig {
+        speed: (0.5, 0.1),
+        ..AggregationConfig::default()
+    });
+    let e = animate::plan(&anim, &model, timeline(), 1).unwrap_err();
+    assert!(e.to_string().contains("animation.speed"), "{e}");
+    let anim = Animation::Diffusion(DiffusionConfig {
+        category_ii: f64::NAN,
+        ..DiffusionConfig::default()
+    });
+    let e = animate::plan(&anim, &model, timeline(), 1).unwrap_err();
+    assert!(e.to_string().contains("animation.category_ii"), "{e}");
+}
+
+#[test]
+fn dead_blobs_stay_hidden_and_the_first_live_blob_starts() {
+    let mut model = shell_model(40);
+    for i in [0, 5, 6, 30] {
+        model.blobs[i].b = 0.0;
+    }
+    let plan = diffusion(&model);
+    assert_eq!(plan.order()[0], 1, "category I is the first live blob");
+    assert_eq!(plan.order().len(), 36);
+    assert_eq!(live_count(&plan.frame(0)), 1);
+    for k in 0..timeline().frames {
+        let f = plan.frame(k);
+        assert!([0, 5, 6, 30].iter().all(|&i| !f[i].is_live()));
+    }
+    let agg = aggregation(&model, 2);
+    assert!(agg.clusters().iter().all(|c| !c.members.contains(&0)));
+    assert_eq!(agg.frame(0)[5], model.blobs[5], "dead blobs do not move");
+    assert_eq!(agg.frame(timeline().frames - 1), model.blobs);
+}

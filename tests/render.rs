@@ -1,0 +1,568 @@
+//! Renderer tests: analytic media against closed forms, determinism across thread counts, the
+//! EXR round trip, and (ignored) the speed benchmark and the look check.
+//!
+//! Benchmark: `cargo test --release --test render -- --ignored --nocapture bench`
+//! Look:      `cargo test --release --test render -- --ignored --nocapture look` (PNGs in /tmp)
+
+use std::time::Instant;
+
+use glam::{DQuat, DVec3, Vec3, Vec3A};
+use nephele::blobby::Blob;
+use nephele::render::shading::cloud_phase;
+use nephele::render::{
+    BlobMedium, Camera, CloudMaterial, Homogeneous, Noise, Quality, RenderSettings, Shape, Sky,
+    Sun, output, render_frame, render_medium, render_medium_unshaded,
+};
+use rand::{RngExt, SeedableRng};
+
+/// A blobby cloud about 2 units across: `n` ellipsoids (A = 1, B = (1+A)/A) in a body, a head
+/// and a tail, with random sizes and orientations.
+fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let lobes = [
+        (DVec3::new(0.0, 0.0, 0.0), 0.75),
+        (DVec3::new(0.65, 0.45, 0.1), 0.42),
+        (DVec3::new(-0.7, 0.2, -0.1), 0.3),
+    ];
+    (0..n)
+        .map(|i| {
+            let (c, r) = lobes[[0, 0, 0, 1, 1, 2][i % 6]];
+            let p = loop {
+                let p = DVec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                if p.length() < 1.0 {
+                    break p;
+                }
+            };
+            let d = p.length();
+            // Smaller blobs near the lobe's surface, bigger inside.
+            let size = r * (0.45 - 0.25 * d);
+            let axes = DVec3::new(
+                size * rng.random_range(0.7..1.3),
+                size * rng.random_range(0.5..1.0),
+                size * rng.random_range(0.7..1.2),
+            );
+            let a = 1.0;
+            Blob {
+                center: c + p * (r * 0.8),
+                rotation: DQuat::from_euler(
+                    glam::EulerRot::XYZ,
+                    rng.random_range(0.0..6.3),
+                    rng.random_range(0.0..6.3),
+                    rng.random_range(0.0..6.3),
+                ),
+                semi_axes: axes,
+                a,
+                b: (1.0 + a) / a,
+            }
+        })
+        .collect()
+}
+
+fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
+    RenderSettings {
+        width,
+        height,
+        camera: Camera {
+            position: Vec3::new(0.3, 0.6, 4.2),
+            look_at: Vec3::new(0.0, 0.1, 0.0),
+            up: Vec3::Y,
+            fov_deg: 38.0,
+        },
+        sun: Sun::default(),
+        sky: Sky::default(),
+        cloud: CloudMaterial::default(),
+        exposure: 0.0,
+        length_scale: 3.5,
+        seed: 7,
+        quality,
+    }
+}
+
+/// Exact chord of the ray `o + t d` (unit d) through the ball (c, r).
+fn chord(o: Vec3A, d: Vec3A, c: Vec3A, r: f32) -> f32 {
+    let oc = o - c;
+    let b = oc.dot(d);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc <= 0.0 { 0.0 } else { 2.0 * disc.sqrt() }
+}
+
+#[test]
+fn uniform_ball_coverage_matches_beer_lambert() {
+    let s = settings(64, 36, Quality::final_frame());
+    let (c, r, sigma) = (Vec3A::new(0.0, 0.1, 0.0), 0.8f32, 2.5f32);
+    let medium = Homogeneous {
+        shape: Shape::Ball {
+            center: c,
+            radius: r,
+        },
+        sigma_t: sigma,
+        sun_dir: Vec3A::NEG_Y,
+        step: 0.05,
+    };
+    let frame = render_medium_unshaded(&s, &medium, 0);
+    let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
+    let mut checked = 0;
+    for (x, y) in [(32, 18), (28, 14), (40, 20), (33, 9), (24, 25), (1, 1)] {
+        let ray = cam.pixel_ray(x, y);
+        let expected = 1.0 - (-sigma * chord(ray.origin, ray.dir, c, r)).exp();
+        let got = frame.alpha[(y * 64 + x) as usize];
+        assert!(
+            (got - expected).abs() <= 0.01 * expected.max(1e-3),
+            "pixel ({x},{y}): alpha {got}, analytic {expected}"
+        );
+        checked += (expected > 0.1) as u32;
+    }
+    assert!(checked >= 4, "most probes must cross the ball");
+}
+
+#[test]
+fn single_blob_sphere_coverage_is_close_to_analytic() {
+    // One spherical blob, hard edge, no noise: density σ inside the iso-sphere of radius 0.6.
+    let mut s = settings(
+        64,
+        36,
+        Quality {
+            step_scale: 0.02,
+            ..Quality::final_frame()
+        },
+    );
+    s.cloud = CloudMaterial {
+        density: 5.0,
+        edge: 0.0,
+        noise: Noise {
+            amplitude: 0.0,
+            ..Noise::default()
+        },
+        ..CloudMaterial::default()
+    };
+    s.length_scale = 2.0;
+    let r = 0.6;
+    let blob = Blob {
+        center: DVec3::new(0.0, 0.1, 0.0),
+        rotation: DQuat::IDENTITY,
+        semi_axes: DVec3::splat(r),
+        a: 1.0,
+        b: 2.0,
+    };
+    let frame = render_frame(&s, &[blob], 0);
+    let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
+    for (x, y) in [(32, 18), (30, 16), (35, 21)] {
+        let ray = cam.pixel_ray(x, y);
+        let ch = chord(ray.origin, ray.dir, Vec3A::new(0.0, 0.1, 0.0), r as f32);
+        let expected = 1.0 - (-2.5 * ch).exp();
+        let got = frame.alpha[(y * 64 + x) as usize];
+        assert!(
+            (got - expected).abs() < 0.02,
+            "({x},{y}): {got} vs {expected}"
+        );
+    }
+    // Far outside the iso-sphere: nothing.
+    assert_eq!(frame.alpha[0], 0.0);
+}
+
+#[test]
+fn thin_slab_single_scattering_matches_closed_form() {
+    // Camera looks down +Z at the slab 0 ≤ z ≤ d; the sun shines along +Z (from behind the
+    // camera), so light is back-scattered. Black sky, single scattering only.
+    let mut s = settings(
+        9,
+        9,
+        Quality {
+            ms_octaves: 1,
+            ..Quality::final_frame()
+        },
+    );
+    s.camera = Camera {
+        position: Vec3::new(0.0, 0.0, -1.0),
+        look_at: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_deg: 60.0,
+    };
+    s.sun = Sun {
+        direction: Vec3::Z,
+        color: Vec3::new(1.0, 0.9, 0.8),
+        intensity: 5.0,
+    };
+    s.sky = Sky::Gradient {
+        zenith: Vec3::ZERO,
+        horizon: Vec3::ZERO,
+    };
+    s.cloud.albedo = 0.9;
+    s.cloud.phase_g = 0.6;
+    let (sigma, d) = (3.0f32, 0.1f32);
+    let medium = Homogeneous {
+        shape: Shape::Slab {
+            normal: Vec3A::Z,
+            near: 0.0,
+            far: d,
+        },
+        sigma_t: sigma,
+        sun_dir: Vec3A::Z,
+        step: d / 16.0,
+    };
+    let frame = render_medium(&s, &medium, 3);
+    let cam = nephele::render::camera::CameraRays::new(&s.camera, 9, 9);
+    for (x, y) in [(4, 4), (0, 0), (8, 3), (2, 7)] {
+        let dir = cam.pixel_ray(x, y).dir;
+        let cos = dir.z;
+        // L = albedo·E·p(−cos)·(1 − e^{−σ(1+cos)d/cos}) / (1 + cos)
+        let k = (1.0 - (-sigma * (1.0 + cos) * d / cos).exp()) / (1.0 + cos);
+        let e = Vec3A::from(s.sun.color * s.sun.intensity);
+        let expected = e * (0.9 * cloud_phase(-cos, 0.6) * k);
+        let got = Vec3A::from(frame.rgb[(y * 9 + x) as usize]);
+        let rel = ((got - expected).length() / expected.length()).abs();
+        assert!(rel < 0.02, "pixel ({x},{y}): {got} vs {expected} ({rel})");
+    }
+}
+
+/// FNV-1a over the f32 bits of every channel.
+fn frame_hash(f: &nephele::render::Frame) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let bits = f
+        .rgb
+        .iter()
+        .flatten()
+        .chain(&f.alpha)
+        .chain(&f.depth)
+        .map(|v| v.to_bits());
+    for b in bits {
+        for byte in b.to_le_bytes() {
+            h = (h ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+#[test]
+fn seeded_frame_is_pinned_and_thread_count_independent() {
+    let blobs = test_cloud(40, 3);
+    let s = settings(64, 36, Quality::preview());
+    let render = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render_frame(&s, &blobs, 5))
+    };
+    let (one, two) = (render(1), render(2));
+    assert_eq!(frame_hash(&one), frame_hash(&two), "1 vs 2 threads");
+    let covered = one.alpha.iter().filter(|&&a| a > 0.5).count();
+    assert!(
+        covered > 100,
+        "the cloud must cover part of the frame ({covered})"
+    );
+    // Another frame index changes the jitter, hence the bits.
+    assert_ne!(frame_hash(&one), frame_hash(&render_frame(&s, &blobs, 6)));
+    assert_eq!(
+        frame_hash(&one),
+        PINNED,
+        "pinned hash changed: {:#x}",
+        frame_hash(&one)
+    );
+}
+
+/// Hash of the 64×36 frame above (update deliberately when the renderer's output changes).
+const PINNED: u64 = 0x7d3e_3020_0fa7_8c39;
+
+#[test]
+fn exr_reads_back_with_channels_and_values() {
+    let blobs = test_cloud(30, 1);
+    let s = settings(40, 24, Quality::preview());
+    let frame = render_frame(&s, &blobs, 0);
+    let dir = std::env::temp_dir().join(format!("nephele-render-exr-{}", std::process::id()));
+    let path = dir.join("f.exr");
+    output::write_exr(&path, &frame).unwrap();
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(&path)
+        .unwrap();
+    let layer = &image.layer_data[0];
+    assert_eq!(layer.size, Vec2(40, 24));
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    assert_eq!(names, ["A", "B", "G", "R", "Z"]);
+    let get = |name: &str| -> Vec<f32> {
+        let c = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap();
+        c.sample_data.values_as_f32().collect()
+    };
+    let (r, a, z) = (get("R"), get("A"), get("Z"));
+    for i in 0..frame.alpha.len() {
+        assert_eq!(r[i].to_bits(), frame.rgb[i][0].to_bits());
+        assert_eq!(a[i].to_bits(), frame.alpha[i].to_bits());
+        assert_eq!(z[i].to_bits(), frame.depth[i].to_bits());
+    }
+    assert!(a.iter().any(|&v| v > 0.5) && a.contains(&0.0));
+    output::write_png(&dir.join("f.png"), &frame, &s).unwrap();
+    let png = image::open(dir.join("f.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (40, 24));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let out = f();
+    (out, t.elapsed().as_secs_f64())
+}
+
+#[test]
+#[ignore = "benchmark: run in release with --ignored --nocapture"]
+fn bench_frame_times() {
+    let blobs = test_cloud(400, 11);
+    for (name, s, runs) in [
+        (
+            "640x360 final",
+            settings(640, 360, Quality::final_frame()),
+            5,
+        ),
+        ("256x256 preview", settings(256, 256, Quality::preview()), 9),
+    ] {
+        let total = median(
+            (0..runs)
+                .map(|i| time(|| render_frame(&s, &blobs, i)).1)
+                .collect(),
+        );
+        let prep = median(
+            (0..runs)
+                .map(|_| time(|| BlobMedium::without_light(&s, &blobs)).1)
+                .collect(),
+        );
+        let lit = median(
+            (0..runs)
+                .map(|_| time(|| BlobMedium::new(&s, &blobs)).1)
+                .collect(),
+        );
+        let m = BlobMedium::new(&s, &blobs);
+        let march = median(
+            (0..runs)
+                .map(|i| time(|| render_medium(&s, &m, i)).1)
+                .collect(),
+        );
+        let dens = median(
+            (0..runs)
+                .map(|i| time(|| render_medium_unshaded(&s, &m, i)).1)
+                .collect(),
+        );
+        println!(
+            "{name}: median {total:.3} s/frame = prepare {prep:.3} + light grid {:.3} + march/density {dens:.3} + shading {:.3} (parts timed separately)",
+            lit - prep,
+            march - dens,
+        );
+    }
+}
+
+#[test]
+#[ignore = "writes PNGs to /tmp/nephele-look for inspection"]
+fn look() {
+    let blobs = test_cloud(400, 11);
+    let dir = std::path::Path::new("/tmp/nephele-look");
+    let mut s = settings(640, 360, Quality::final_frame());
+    // Sun from the upper left, a little in front of the cloud.
+    s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
+    let f = render_frame(&s, &blobs, 0);
+    output::write_png(&dir.join("front.png"), &f, &s).unwrap();
+    let mut lum: Vec<f32> = (0..f.alpha.len())
+        .filter(|&i| f.alpha[i] > 0.99)
+        .map(|i| 0.2126 * f.rgb[i][0] + 0.7152 * f.rgb[i][1] + 0.0722 * f.rgb[i][2])
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let q = |p: f32| lum[((lum.len() - 1) as f32 * p) as usize];
+    println!(
+        "opaque luminance p5 {:.3} p50 {:.3} p95 {:.3}",
+        q(0.05),
+        q(0.5),
+        q(0.95)
+    );
+    // Looking toward the sun: silver lining.
+    let mut back = s.clone();
+    back.camera.position = Vec3::new(-2.2, 1.4, -3.4);
+    let f = render_frame(&back, &blobs, 0);
+    output::write_png(&dir.join("against_sun.png"), &f, &back).unwrap();
+    let mut p = settings(256, 256, Quality::preview());
+    p.sun = s.sun;
+    let f = render_frame(&p, &blobs, 0);
+    output::write_png(&dir.join("preview.png"), &f, &p).unwrap();
+}
+
+fn lum_stats(f: &nephele::render::Frame) -> String {
+    let mut lum: Vec<f32> = (0..f.alpha.len())
+        .filter(|&i| f.alpha[i] > 0.99)
+        .map(|i| 0.2126 * f.rgb[i][0] + 0.7152 * f.rgb[i][1] + 0.0722 * f.rgb[i][2])
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let q = |p: f32| lum[((lum.len() - 1) as f32 * p) as usize];
+    format!(
+        "opaque luminance p5 {:.3} p50 {:.3} p95 {:.3}",
+        q(0.05),
+        q(0.5),
+        q(0.95)
+    )
+}
+
+#[test]
+#[ignore = "debug"]
+fn look_duck() {
+    let dir = std::path::Path::new("/tmp/nephele-look");
+    let cache = dir.join("duck.ron");
+    let model = nephele::blobby::load_model(&cache).unwrap_or_else(|_| {
+        let mesh = nephele::mesh::load("builtin:duck").unwrap();
+        let cfg = nephele::pipeline::FitConfig {
+            blobs: 300,
+            ..Default::default()
+        };
+        let m = nephele::pipeline::fit(&cfg, &mesh).model;
+        nephele::blobby::save_model(&cache, &m).unwrap();
+        m
+    });
+    println!("duck: {} live blobs", model.live_count());
+    let mut s = settings(480, 320, Quality::final_frame());
+    s.length_scale = model.source.bounds.diagonal() as f32;
+    s.camera.position = Vec3::new(2.2, 1.2, 3.6);
+    s.camera.look_at = Vec3::new(0.0, 0.0, 0.0);
+    s.sun.direction = Vec3::new(0.8, -0.6, -0.2);
+    let (f, secs) = time(|| render_frame(&s, &model.blobs, 0));
+    println!("duck final {secs:.3} s, {}", lum_stats(&f));
+    output::write_png(&dir.join("duck.png"), &f, &s).unwrap();
+    s.camera.position = Vec3::new(2.5, 0.6, -3.4);
+    let f = render_frame(&s, &model.blobs, 0);
+    output::write_png(&dir.join("duck_back.png"), &f, &s).unwrap();
+}
+
+#[test]
+#[ignore = "debug"]
+fn look_debug() {
+    let dir = std::path::Path::new("/tmp/nephele-look");
+    let blob = Blob {
+        center: DVec3::new(0.0, 0.1, 0.0),
+        rotation: DQuat::IDENTITY,
+        semi_axes: DVec3::splat(0.8),
+        a: 1.0,
+        b: 2.0,
+    };
+    let mut p = settings(
+        256,
+        256,
+        Quality {
+            ms_octaves: 1,
+            ..Quality::final_frame()
+        },
+    );
+    p.sun.direction = Vec3::new(1.0, 0.0, 0.0);
+    p.sky = Sky::Gradient {
+        zenith: Vec3::ZERO,
+        horizon: Vec3::ZERO,
+    };
+    let f = render_frame(&p, &[blob], 0);
+    println!("sphere {}", lum_stats(&f));
+    output::write_png(&dir.join("sphere.png"), &f, &p).unwrap();
+    let blobs = test_cloud(400, 11);
+    let mut s = settings(320, 180, Quality::final_frame());
+    s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
+    let mut a = s.clone();
+    a.sun.intensity = 0.0;
+    let f = render_frame(&a, &blobs, 0);
+    println!("ambient only {}", lum_stats(&f));
+    output::write_png(&dir.join("amb.png"), &f, &a).unwrap();
+    let mut b = s.clone();
+    b.sky = Sky::Gradient {
+        zenith: Vec3::ZERO,
+        horizon: Vec3::ZERO,
+    };
+    let f = render_frame(&b, &blobs, 0);
+    println!("sun only {}", lum_stats(&f));
+    output::write_png(&dir.join("sun.png"), &f, &b).unwrap();
+    b.quality.ms_octaves = 1;
+    let f = render_frame(&b, &blobs, 0);
+    for oct in [2, 3] {
+        let mut c = s.clone();
+        c.quality.ms_octaves = oct;
+        let f = render_frame(&c, &blobs, 0);
+        println!("full {oct} octaves {}", lum_stats(&f));
+        output::write_png(&dir.join(format!("oct{oct}.png")), &f, &c).unwrap();
+    }
+    println!("sun single {}", lum_stats(&f));
+    output::write_png(&dir.join("sun1.png"), &f, &b).unwrap();
+}
+
+#[test]
+#[ignore = "debug"]
+fn light_debug() {
+    let blobs = test_cloud(400, 11);
+    let mut s = settings(640, 360, Quality::final_frame());
+    s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
+    let m = BlobMedium::new(&s, &blobs);
+    let g = m.light_grid().unwrap();
+    for x in [-1.2f32, -0.9, -0.6, -0.3, 0.0, 0.3, 0.6, 0.9] {
+        println!("x {x}: {:?}", g.lookup(Vec3A::new(x, 0.0, 0.0)));
+    }
+}
+
+#[test]
+fn preview_cli_writes_frames_and_gif() {
+    use nephele::blobby::{BlobModel, SourceInfo, model_file::MODEL_VERSION};
+    let dir = std::env::temp_dir().join(format!("nephele-preview-{}", std::process::id()));
+    let blobs = test_cloud(20, 2);
+    let bounds = blobs.iter().fold(nephele::geometry::Aabb::EMPTY, |b, x| {
+        b.union(x.ellipsoid().bounds())
+    });
+    let model = BlobModel {
+        version: MODEL_VERSION,
+        primitive: nephele::decompose::Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: SourceInfo {
+            mesh: "test".into(),
+            bounds,
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    };
+    let path = dir.join("cloud.ron");
+    nephele::blobby::save_model(&path, &model).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["preview", path.to_str().unwrap(), "-o"])
+        .arg(dir.join("out"))
+        .args(["--frames", "3", "--size", "32"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["turntable_0001.png", "turntable_0003.png", "turntable.gif"] {
+        assert!(dir.join("out").join(f).is_file(), "{f} missing");
+    }
+    assert!(String::from_utf8_lossy(&out.stderr).contains("s/frame"));
+    // A missing input fails cleanly with its name.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["preview", "/nonexistent/model.ron", "--frames", "1"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent/model.ron"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,409 @@
+//! Scene files: defaults, syntax forms, located errors for malformed scenes, and the
+//! `nephele render` command's exit status; rendering (pinned frame hashes, resume) once the
+//! renderer is in.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use glam::{DQuat, DVec3};
+use nephele::animate::Animation;
+use nephele::blobby::model_file::MODEL_VERSION;
+use nephele::blobby::{Blob, BlobModel, SourceInfo, save_model};
+use nephele::decompose::Primitive;
+use nephele::geometry::Aabb;
+use nephele::scene::{self, CameraSpec, SceneError, Target};
+
+/// A fresh temporary folder for one test.
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nephele-scene-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A small "snowman" model: three stacked spheres plus a ring of small blobs.
+fn small_model() -> BlobModel {
+    let ball = |c: DVec3, r: f64| Blob {
+        center: c,
+        rotation: DQuat::IDENTITY,
+        semi_axes: DVec3::splat(r),
+        a: 1.0,
+        b: 2.0,
+    };
+    let mut blobs = vec![
+        ball(DVec3::new(0.0, 0.0, 0.0), 0.8),
+        ball(DVec3::new(0.0, 1.0, 0.0), 0.6),
+        ball(DVec3::new(0.0, 1.8, 0.0), 0.4),
+    ];
+    for i in 0..21 {
+        let a = i as f64 / 21.0 * std::f64::consts::TAU;
+        blobs.push(ball(
+            DVec3::new(0.9 * a.cos(), 0.3 * (3.0 * a).sin(), 0.9 * a.sin()),
+            0.25,
+        ));
+    }
+    BlobModel {
+        version: MODEL_VERSION,
+        primitive: Primitive::Ellipsoid,
+        threshold: 1.0,
+        source: SourceInfo {
+            mesh: "test:snowman".into(),
+            bounds: Aabb {
+                min: DVec3::new(-1.2, -0.8, -1.2),
+                max: DVec3::new(1.2, 2.2, 1.2),
+            },
+            vertices: 0,
+            faces: 0,
+        },
+        seed: 1,
+        blobs,
+    }
+}
+
+/// A folder with `model.ron` and a scene file `name` holding `text`.
+fn scene_dir(test: &str, name: &str, text: &str) -> (PathBuf, PathBuf) {
+    let dir = temp_dir(test);
+    save_model(&dir.join("model.ron"), &small_model()).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    (dir, path)
+}
+
+fn load_err(test: &str, text: &str) -> SceneError {
+    let (_dir, path) = scene_dir(test, "bad.ron", text);
+    scene::load_scene(&path).unwrap_err()
+}
+
+#[test]
+fn minimal_scene_takes_the_defaults() {
+    let (dir, path) = scene_dir("minimal", "snow.ron", "Scene(target: Model(\"model.ron\"))");
+    let s = scene::load_scene(&path).unwrap();
+    assert_eq!(s.name, "snow");
+    assert_eq!(s.output_dir, Path::new("renders/snow"));
+    assert_eq!(s.file.shot.frame_count(), 96);
+    assert!(matches!(s.file.animation, Animation::Diffusion(_)));
+    assert!(matches!(s.file.camera, CameraSpec::Auto(_)));
+    match &s.file.target {
+        Target::Model(p) => assert_eq!(Path::new(p), dir.join("model.ron")),
+        t => panic!("{t:?}"),
+    }
+}
+
+#[test]
+fn full_scene_syntax_forms_parse() {
+    let text = r#"
+        // Every section, in the forms scenes/README.md documents.
+        Scene(
+            target: Fit(mesh: "builtin:duck", blobs: 120, seed: 3),
+            animation: Aggregation((keyframes: 5, speed: (0.1, 0.2), planes: Custom([
+                (normal: (0.0, 1.0, 0.0), offset: 0.0),
+                (normal: (1.0, 0.0, 0.0)),
+            ]), easing: EaseOut)),
+            camera: Fixed((position: (0.0, 1.0, 5.0), look_at: (0.0, 0.5, 0.0), orbit_deg: 30.0)),
+            sun: (direction: (-1.0, -1.0, 0.0), intensity: 4.0),
+            sky: Gradient(zenith: (0.2, 0.4, 0.8), horizon: (0.8, 0.8, 0.9)),
+            cloud: (density: 30.0, noise: (octaves: 3)),
+            shot: (width: 320, height: 180, fps: 12, seconds: 2.0),
+            frames: (2, 10),
+            exposure: 0.5,
+            output: (dir: "out/x", name: "clip", formats: [Png]),
+            seed: 9,
+        )"#;
+    let (_dir, path) = scene_dir("full", "full.ron", text);
+    let s = scene::load_scene(&path).unwrap();
+    assert_eq!(s.file.frames, Some((2, 10)));
+    assert_eq!(s.file.shot.fps, 12.0);
+    assert_eq!(s.name, "clip");
+    assert_eq!(s.output_dir, Path::new("out/x"));
+    let Animation::Aggregation(a) = &s.file.animation else {
+        panic!()
+    };
+    assert_eq!(a.keyframes, 5);
+    // Defaults inside newtype variants.
+    let (_d, p) = scene_dir(
+        "newtype",
+        "n.ron",
+        "Scene(target: Model(\"model.ron\"), camera: Auto((azimuth_deg: 10.0)), \
+         animation: Diffusion((grow_seconds: 0.3)))",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    let CameraSpec::Auto(c) = s.file.camera else {
+        panic!()
+    };
+    assert_eq!(c.azimuth_deg, 10.0);
+    assert_eq!(c.fov_deg, 35.0);
+    // Unnamed outer struct and all-default newtypes.
+    let (_d, p) = scene_dir(
+        "unnamed",
+        "u.ron",
+        "(target: Model(\"model.ron\"), camera: Auto(()), animation: Aggregation(()))",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    assert_eq!(s.file.camera, CameraSpec::default());
+}
+
+/// The error's text starts with `file:line:column:`.
+fn assert_located(e: &SceneError, line: usize, needle: &str) {
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Parse { .. }), "{msg}");
+    let SceneError::Parse { line: l, path, .. } = e else {
+        unreachable!()
+    };
+    assert_eq!(*l, line, "{msg}");
+    assert!(
+        msg.starts_with(&format!("{}:{line}:", path.display())),
+        "{msg}"
+    );
+    assert!(msg.contains(needle), "{msg} should mention {needle}");
+}
+
+#[test]
+fn unknown_field_is_located() {
+    let e = load_err(
+        "unknown",
+        "Scene(\n  target: Model(\"model.ron\"),\n  shot: (width: 64, colour: 3),\n)",
+    );
+    assert_located(&e, 3, "colour");
+}
+
+#[test]
+fn wrong_type_and_negative_resolution_are_located() {
+    let e = load_err(
+        "wrongtype",
+        "Scene(\n  target: Model(\"model.ron\"),\n  seed: \"seven\",\n)",
+    );
+    assert_located(&e, 3, "");
+    let e = load_err(
+        "negative",
+        "Scene(\n  target: Model(\"model.ron\"),\n\n  shot: (width: -640),\n)",
+    );
+    assert_located(&e, 4, "");
+}
+
+#[test]
+fn missing_target_file_names_scene_and_path() {
+    let e = load_err("missing", "Scene(target: Model(\"nowhere/horse.ron\"))");
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::MissingTarget { .. }), "{msg}");
+    assert!(
+        msg.contains("bad.ron") && msg.contains("nowhere/horse.ron"),
+        "{msg}"
+    );
+    let e = load_err("missingmesh", "Scene(target: Fit(mesh: \"gone.ply\"))");
+    assert!(e.to_string().contains("gone.ply"), "{e}");
+}
+
+#[test]
+fn out_of_range_values_name_the_field() {
+    let cases = [
+        ("zero-width", "shot: (width: 0)", "shot"),
+        ("zero-fps", "shot: (fps: 0.0)", "shot.fps"),
+        ("neg-seconds", "shot: (seconds: -1.0)", "shot.seconds"),
+        ("empty-range", "frames: (5, 2)", "frames"),
+        ("past-end", "frames: (1, 500)", "frames"),
+        ("nan", "exposure: NaN", "exposure"),
+        (
+            "nan-sun",
+            "sun: (direction: (0.0, NaN, 0.0))",
+            "sun.direction",
+        ),
+        ("fov", "camera: Auto((fov_deg: 0.0))", "camera.fov_deg"),
+        (
+            "speed",
+            "animation: Aggregation((speed: (2.0, 1.0)))",
+            "animation.speed",
+        ),
+        ("formats", "output: (formats: [])", "output.formats"),
+    ];
+    for (name, field_text, field) in cases {
+        let text = format!("Scene(target: Model(\"model.ron\"), {field_text})");
+        let e = load_err(name, &text);
+        let msg = e.to_string();
+        match &e {
+            SceneError::Invalid { field: f, .. } => assert_eq!(f, field, "{msg}"),
+            other => panic!("{name}: expected a validation error, got {other}"),
+        }
+        assert!(msg.contains("bad.ron"), "{msg}");
+    }
+}
+
+fn nephele() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_nephele"))
+}
+
+#[test]
+fn cli_rejects_malformed_scenes_with_nonzero_exit() {
+    let (dir, path) = scene_dir(
+        "cli-bad",
+        "bad.ron",
+        "Scene(\n  target: Model(\"model.ron\"),\n  animaton: Diffusion(()),\n)",
+    );
+    let out = nephele()
+        .arg("render")
+        .arg(&path)
+        .arg("--output")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.ron:3:"), "{err}");
+    assert!(!dir.join("out").exists(), "nothing written for a bad scene");
+    // A missing scene file and a bad --frames value fail too.
+    let out = nephele()
+        .args(["render", "no-such-scene.ron"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let (_d, ok) = scene_dir(
+        "cli-frames",
+        "ok.ron",
+        "Scene(target: Model(\"model.ron\"))",
+    );
+    let out = nephele()
+        .arg("render")
+        .arg(&ok)
+        .args(["--frames", "5..2"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("frames"));
+}
+
+#[test]
+fn shipped_scenes_load() {
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"));
+    let shared = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/models"));
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "ron") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        if text.contains("shared/models") && !shared.exists() {
+            eprintln!("skipping {}: ../shared/models is absent", path.display());
+            continue;
+        }
+        scene::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        n += 1;
+    }
+    assert!(n >= 3, "at least the builtin scenes load");
+}
+
+// ---- Rendering. Pinned hashes are of the renderer at branch `render` ea4fdc9: a change to the
+// renderer's look changes them (update them then, after looking at the frames). ----
+
+/// A tiny shot of the small model with the given animation.
+fn tiny_scene(test: &str, animation: &str) -> (PathBuf, PathBuf) {
+    scene_dir(
+        test,
+        "tiny.ron",
+        &format!(
+            "Scene(target: Model(\"model.ron\"), animation: {animation}, \
+             shot: (width: 64, height: 36, fps: 12, seconds: 1.0), seed: 5)"
+        ),
+    )
+}
+
+/// FNV-1a of a frame's RGB and alpha bits.
+fn frame_hash(f: &nephele::render::Frame) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let words = f
+        .rgb
+        .iter()
+        .flat_map(|p| p.iter().copied())
+        .chain(f.alpha.iter().copied());
+    for w in words {
+        for b in w.to_bits().to_le_bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
+    use nephele::scene::shot::{frame_settings, prepare, shot_setup};
+    let (dir, path) = tiny_scene(test, animation);
+    let s = scene::load_scene(&path).unwrap();
+    let (model, _) = scene::load_target(&s, &dir).unwrap();
+    let prep = prepare(&s, model).unwrap();
+    let setup = shot_setup(&s, &scene::RenderOptions::default()).unwrap();
+    let settings = frame_settings(&s, &prep, &setup, k, false);
+    let blobs = prep.plan.frame(k as usize);
+    nephele::render::render_frame(&settings, &blobs, k)
+}
+
+#[test]
+fn seeded_frames_have_pinned_hashes() {
+    for (name, anim, pinned) in [
+        ("hash-agg", "Aggregation(())", 8454487164555321016u64),
+        ("hash-dif", "Diffusion(())", 17153383485326608517u64),
+    ] {
+        let a = render_tiny(name, anim, 4);
+        let b = render_tiny(name, anim, 4);
+        assert_eq!((a.width, a.height), (64, 36));
+        assert!(
+            a.alpha.iter().any(|&x| x > 0.05),
+            "{name}: some cloud is visible"
+        );
+        assert_eq!(frame_hash(&a), frame_hash(&b), "{name}: deterministic");
+        assert_eq!(frame_hash(&a), pinned, "{name}: pinned hash");
+    }
+}
+
+fn run_render(scene: &Path, out: &Path, extra: &[&str]) -> String {
+    let o = nephele()
+        .arg("render")
+        .arg(scene)
+        .arg("--output")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
+#[test]
+fn cli_resumes_and_force_rerenders() {
+    let (dir, path) = tiny_scene("resume", "Diffusion(())");
+    let out = dir.join("out");
+    let err = run_render(&path, &out, &["--frames", "1..2", "--dump-blobs"]);
+    assert!(err.contains("2 frames rendered, 0 already done"), "{err}");
+    for f in [
+        "tiny_0001.exr",
+        "tiny_0001.png",
+        "tiny_0002.png",
+        "tiny_0002.blobs.ron",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert!(!out.join("tiny_0003.png").exists());
+    // The blob dump is the frame's full blob list.
+    let text = std::fs::read_to_string(out.join("tiny_0001.blobs.ron")).unwrap();
+    let blobs: Vec<Blob> = ron::from_str(&text).unwrap();
+    assert_eq!(blobs.len(), small_model().blobs.len());
+    // Second run: nothing to do; deleting one file re-renders just that frame.
+    let err = run_render(&path, &out, &["--frames", "1..2", "--dump-blobs"]);
+    assert!(err.contains("0 frames rendered, 2 already done"), "{err}");
+    std::fs::remove_file(out.join("tiny_0002.exr")).unwrap();
+    let err = run_render(&path, &out, &["--frames", "1..2", "--dump-blobs"]);
+    assert!(err.contains("1 frames rendered, 1 already done"), "{err}");
+    let err = run_render(&path, &out, &["--frames", "1..2", "--force"]);
+    assert!(err.contains("2 frames rendered, 0 already done"), "{err}");
+    // No temporary files are left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    // Preview: a quarter of the width but at least 64 px, in preview/.
+    run_render(&path, &out, &["--frames", "12", "--preview"]);
+    let png = out.join("preview/tiny_0012.png");
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (64, 36));
+}
