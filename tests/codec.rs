@@ -303,3 +303,42 @@ fn cli_encode_decode_round_trip() {
     assert!(!out.status.success() && !nothing.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn quantized_extra_error_on_a_fitted_duck() {
+    use nephele::blobby::fit::FaithfulConfig;
+    use nephele::blobby::polygonize::polygonize;
+    use nephele::eval::{MetroConfig, compare};
+    use nephele::pipeline::{FitConfig, Optimisation, fit};
+    let loaded = nephele::mesh::load("builtin:duck").unwrap();
+    let cfg = FitConfig {
+        blobs: 150,
+        samples: 20_000,
+        optimisation: Optimisation::Faithful(FaithfulConfig::default()),
+        ..FitConfig::default()
+    };
+    let m = fit(&cfg, &loaded).model;
+    let lossless = codec::encode(&m, Encoding::Lossless);
+    assert_eq!(
+        codec::encode(&codec::decode(path(), &lossless).unwrap(), Encoding::Lossless),
+        lossless
+    );
+    let q = codec::decode(path(), &codec::encode(&m, Encoding::Quantized)).unwrap();
+    let d = loaded.mesh.bounds().diagonal();
+    let metro = MetroConfig {
+        min_samples: 50_000,
+        max_samples: 50_000,
+        diagonal: Some(d),
+        ..MetroConfig::default()
+    };
+    let r = compare(&polygonize(&m.field(), 120), &polygonize(&q.field(), 120), &metro);
+    eprintln!(
+        "duck, {} blobs ({} live): quantized extra error mean {:.5}% max {:.5}% of D",
+        m.blobs.len(),
+        m.live_count(),
+        r.mean_pct(),
+        r.hausdorff_pct
+    );
+    assert!(r.hausdorff_pct < 0.1, "{r:?}");
+    assert!(r.hausdorff_pct > 0.0);
+}
