@@ -9,9 +9,9 @@
 //! ```
 //! Environment: `NEPHELE_BENCH_MODELS` (file stems, default bunny,horse,armadillo,cow,fertility,
 //! knight), `NEPHELE_BENCH_BLOBS` (default 100,300,1000), `NEPHELE_BENCH_RESOLUTION`
-//! (polygonization cells on the longest side, default 200), `NEPHELE_BENCH_OPT`
-//! (`none`, `faithful` — the default — or `full`), `NEPHELE_BENCH_SPHERES` (`0` skips the sphere
-//! rows). A stage that fails or is not implemented yet prints its message in the row and the
+//! (polygonization cells on the longest side, default 200), `NEPHELE_BENCH_OPT` (a list of
+//! `none`, `faithful`, `full`; default `full`, what `nephele fit` does), `NEPHELE_BENCH_SPHERES`
+//! (`0` skips the sphere rows). A stage that fails or is not implemented yet prints its message in the row and the
 //! benchmark goes on.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -42,6 +42,7 @@ fn find_model(dir: &Path, name: &str) -> Option<PathBuf> {
 /// One table row (or the reason it has no numbers).
 struct Row {
     model: String,
+    opt: &'static str,
     primitive: &'static str,
     blobs: usize,
     result: Result<Numbers, String>,
@@ -59,7 +60,10 @@ struct Numbers {
 
 impl Row {
     fn line(&self) -> String {
-        let head = format!("{:<10} {:<9} {:>6}", self.model, self.primitive, self.blobs);
+        let head = format!(
+            "{:<10} {:<8} {:<9} {:>6}",
+            self.model, self.opt, self.primitive, self.blobs
+        );
         match &self.result {
             Ok(n) => format!(
                 "{head} {:>6} {:>9} {:>9} {:>8.4} {:>8.4} {:>8.2} {:>8.2}",
@@ -72,8 +76,9 @@ impl Row {
 
 fn header() -> String {
     format!(
-        "{:<10} {:<9} {:>6} {:>6} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}",
+        "{:<10} {:<8} {:<9} {:>6} {:>6} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}",
         "model",
+        "opt",
         "primitive",
         "blobs",
         "live",
@@ -98,22 +103,32 @@ fn guarded<T>(f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
     }
 }
 
-fn optimisation() -> Optimisation {
-    match env_or("NEPHELE_BENCH_OPT", "faithful").as_str() {
-        "none" => Optimisation::None,
-        "full" => Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),
-        _ => Optimisation::Faithful(FaithfulConfig::default()),
+fn optimisation(name: &str) -> Option<(&'static str, Optimisation)> {
+    match name {
+        "none" => Some(("none", Optimisation::None)),
+        "faithful" => Some(("faithful", Optimisation::Faithful(FaithfulConfig::default()))),
+        "full" => Some((
+            "full",
+            Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),
+        )),
+        _ => None,
     }
 }
 
-fn run_one(path: &Path, primitive: Primitive, blobs: usize, resolution: usize) -> Row {
+fn run_one(
+    path: &Path,
+    opt: &(&'static str, Optimisation),
+    primitive: Primitive,
+    blobs: usize,
+    resolution: usize,
+) -> Row {
     let name = path.file_stem().unwrap_or_default().to_string_lossy();
     let result = guarded(|| {
         let loaded = nephele::mesh::load(&path.to_string_lossy()).map_err(|e| e.to_string())?;
         let cfg = FitConfig {
             blobs,
             primitive,
-            optimisation: optimisation(),
+            optimisation: opt.1.clone(),
             ..FitConfig::default()
         };
         let t = Instant::now();
@@ -138,6 +153,7 @@ fn run_one(path: &Path, primitive: Primitive, blobs: usize, resolution: usize) -
     });
     Row {
         model: name.into_owned(),
+        opt: opt.0,
         primitive: match primitive {
             Primitive::Ellipsoid => "ellipsoid",
             Primitive::Sphere => "sphere",
@@ -164,6 +180,10 @@ fn fit_and_evaluate_every_model() {
         .parse()
         .unwrap_or(200);
     let spheres = env_or("NEPHELE_BENCH_SPHERES", "1") != "0";
+    let opts: Vec<_> = env_or("NEPHELE_BENCH_OPT", "full")
+        .split(',')
+        .filter_map(|s| optimisation(s.trim()))
+        .collect();
     // Silence the panic messages of guarded stages; the row shows them.
     std::panic::set_hook(Box::new(|_| {}));
     let mut rows = Vec::new();
@@ -179,10 +199,12 @@ fn fit_and_evaluate_every_model() {
                 // Spheres at the same count, and at twice it: about the ellipsoids' bytes.
                 runs.extend([(Primitive::Sphere, n), (Primitive::Sphere, 2 * n)]);
             }
-            for (primitive, blobs) in runs {
-                let row = run_one(&path, primitive, blobs, resolution);
-                eprintln!("{}", row.line());
-                rows.push(row);
+            for opt in &opts {
+                for &(primitive, blobs) in &runs {
+                    let row = run_one(&path, opt, primitive, blobs, resolution);
+                    eprintln!("{}", row.line());
+                    rows.push(row);
+                }
             }
         }
     }
