@@ -106,7 +106,10 @@ fn guarded<T>(f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
 fn optimisation(name: &str) -> Option<(&'static str, Optimisation)> {
     match name {
         "none" => Some(("none", Optimisation::None)),
-        "faithful" => Some(("faithful", Optimisation::Faithful(FaithfulConfig::default()))),
+        "faithful" => Some((
+            "faithful",
+            Optimisation::Faithful(FaithfulConfig::default()),
+        )),
         "full" => Some((
             "full",
             Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),

@@ -320,7 +320,10 @@ fn quantized_extra_error_on_a_fitted_duck() {
     let m = fit(&cfg, &loaded).model;
     let lossless = codec::encode(&m, Encoding::Lossless);
     assert_eq!(
-        codec::encode(&codec::decode(path(), &lossless).unwrap(), Encoding::Lossless),
+        codec::encode(
+            &codec::decode(path(), &lossless).unwrap(),
+            Encoding::Lossless
+        ),
         lossless
     );
     let q = codec::decode(path(), &codec::encode(&m, Encoding::Quantized)).unwrap();
@@ -331,7 +334,11 @@ fn quantized_extra_error_on_a_fitted_duck() {
         diagonal: Some(d),
         ..MetroConfig::default()
     };
-    let r = compare(&polygonize(&m.field(), 120), &polygonize(&q.field(), 120), &metro);
+    let r = compare(
+        &polygonize(&m.field(), 120),
+        &polygonize(&q.field(), 120),
+        &metro,
+    );
     eprintln!(
         "duck, {} blobs ({} live): quantized extra error mean {:.5}% max {:.5}% of D",
         m.blobs.len(),
