@@ -116,7 +116,7 @@ fn sizes_per_blob() {
     let header = lossless.len() - 50 * 40;
     assert_eq!(header, 58 + m.source.mesh.len());
     assert_eq!(quantized.len(), header + 36 + 50 * QUANTIZED_BLOB_BYTES);
-    assert!(QUANTIZED_BLOB_BYTES < 20);
+    const { assert!(QUANTIZED_BLOB_BYTES < 20) };
     let s = model(50, true);
     assert_eq!(
         codec::encode(&s, Encoding::Lossless).len(),
@@ -302,4 +302,50 @@ fn cli_encode_decode_round_trip() {
     let out = run(&[Path::new("decode"), &ron, Path::new("-o"), &nothing]);
     assert!(!out.status.success() && !nothing.exists());
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn quantized_extra_error_on_a_fitted_duck() {
+    use nephele::blobby::fit::FaithfulConfig;
+    use nephele::blobby::polygonize::polygonize;
+    use nephele::eval::{MetroConfig, compare};
+    use nephele::pipeline::{FitConfig, Optimisation, fit};
+    let loaded = nephele::mesh::load("builtin:duck").unwrap();
+    let cfg = FitConfig {
+        blobs: 150,
+        samples: 20_000,
+        optimisation: Optimisation::Faithful(FaithfulConfig::default()),
+        ..FitConfig::default()
+    };
+    let m = fit(&cfg, &loaded).model;
+    let lossless = codec::encode(&m, Encoding::Lossless);
+    assert_eq!(
+        codec::encode(
+            &codec::decode(path(), &lossless).unwrap(),
+            Encoding::Lossless
+        ),
+        lossless
+    );
+    let q = codec::decode(path(), &codec::encode(&m, Encoding::Quantized)).unwrap();
+    let d = loaded.mesh.bounds().diagonal();
+    let metro = MetroConfig {
+        min_samples: 50_000,
+        max_samples: 50_000,
+        diagonal: Some(d),
+        ..MetroConfig::default()
+    };
+    let r = compare(
+        &polygonize(&m.field(), 120),
+        &polygonize(&q.field(), 120),
+        &metro,
+    );
+    eprintln!(
+        "duck, {} blobs ({} live): quantized extra error mean {:.5}% max {:.5}% of D",
+        m.blobs.len(),
+        m.live_count(),
+        r.mean_pct(),
+        r.hausdorff_pct
+    );
+    assert!(r.hausdorff_pct < 0.1, "{r:?}");
+    assert!(r.hausdorff_pct > 0.0);
 }

@@ -91,6 +91,7 @@ fn sample_counts_follow_the_larger_mesh() {
     let cfg = MetroConfig::default();
     assert_eq!(cfg.sample_count(10, 30_000), 300_000);
     assert_eq!(cfg.sample_count(100, 200), 200_000);
+    assert_eq!(cfg.sample_count(1_000_000, 200), 1_000_000);
     let m = icosphere(2, 1.0, DVec3::ZERO);
     let pts = area_samples(&m, 1000, 3, 0);
     assert_eq!(pts.len(), 1000);
@@ -166,6 +167,7 @@ fn quick() -> nephele::eval::EvalConfig {
             ..small()
         },
         codec_error: true,
+        quantized_vs_mesh: true,
     }
 }
 

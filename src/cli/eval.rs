@@ -24,9 +24,15 @@ pub struct Args {
     /// Minimum area-weighted Metro samples a direction.
     #[arg(long, default_value_t = 200_000)]
     pub min_samples: usize,
-    /// Skip the quantized codec's extra error (saves a polygonization and two Metro runs).
+    /// Maximum area-weighted Metro samples a direction.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub max_samples: usize,
+    /// Skip the quantized codec's extra error (saves a polygonization and a Metro run).
     #[arg(long)]
     pub no_codec_error: bool,
+    /// Also measure the quantized model against the mesh (one more Metro run).
+    #[arg(long)]
+    pub quantized_vs_mesh: bool,
     /// Seed of the Metro sample positions.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -53,10 +59,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         metro: MetroConfig {
             samples_per_face: args.samples_per_face,
             min_samples: args.min_samples,
+            max_samples: args.max_samples,
             seed: args.seed,
             ..MetroConfig::default()
         },
         codec_error: !args.no_codec_error,
+        quantized_vs_mesh: args.quantized_vs_mesh,
     };
     let mut eval = evaluate_model(&loaded.mesh, &model, &cfg);
     timings.stages.append(&mut eval.timings);

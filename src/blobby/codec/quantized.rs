@@ -146,6 +146,9 @@ fn dequantize(q: u16, lo: f64, hi: f64) -> f64 {
     lo + (hi - lo) * (q as f64 / Q16)
 }
 
+// The layouts' sizes, as written below.
+const _: () = assert!(QUANTIZED_BLOB_BYTES == 6 + 5 + 6 + 2 && QUANTIZED_SPHERE_BYTES == 6 + 2 + 2);
+
 /// Write the ranges, then every blob. Dead blobs (zero radius or `B`) are written with `B = 0`.
 pub(super) fn write(w: &mut Writer, blobs: &[Packed], isotropic: bool) {
     let q = Ranges::of(blobs);
@@ -165,7 +168,6 @@ pub(super) fn write(w: &mut Writer, blobs: &[Packed], isotropic: bool) {
         let b = if live { p.b.abs() } else { 0.0 };
         w.u16(quantize(b, 0.0, q.b_max));
     }
-    debug_assert!(QUANTIZED_BLOB_BYTES == 6 + 5 + 6 + 2 && QUANTIZED_SPHERE_BYTES == 6 + 2 + 2);
 }
 
 /// Smallest-three: drop the largest-magnitude component (made positive), keep the other three

@@ -152,7 +152,7 @@ impl<'a> Reader<'a> {
     /// incomplete blob, extra bytes are refused.
     pub fn expect_blobs(&self, count: usize, size: usize) -> Result<(), ModelError> {
         let remaining = self.bytes.len() - self.pos;
-        let needed = count.checked_mul(size).unwrap_or(usize::MAX);
+        let needed = count.saturating_mul(size);
         if remaining < needed {
             let complete = remaining / size;
             return Err(self.invalid(
