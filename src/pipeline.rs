@@ -63,7 +63,6 @@ impl Default for FitConfig {
             voxels: d.voxels,
             curvature_weight: d.curvature_weight,
             initial_a: 1.0,
-            // Scenes and previews want every blob alive; `nephele fit` defaults to faithful.
             optimisation: Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),
             seed: 1,
         }

@@ -45,13 +45,13 @@ pub struct FullConfig {
 impl Default for FullConfig {
     fn default() -> Self {
         FullConfig {
-            sweeps: 6,
+            sweeps: 5,
             iterations: 2,
             inside_offsets: vec![0.005, 0.02],
             outside_offsets: vec![0.005, 0.03, 0.1],
             constraint_weight: 0.5,
             margin: 0.05,
-            max_points: 30_000,
+            max_points: 20_000,
             b_floor: 0.2,
             shape_prior: 0.002,
         }

@@ -32,14 +32,17 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = ShiftArg::Outward)]
     pub shift: ShiftArg,
     /// Blob optimisation after decomposition: `faithful` (the paper: Nelder–Mead on A and B,
-    /// centres and shapes fixed; fast), `full` (beyond the paper: every blob parameter by block
+    /// centres and shapes fixed; fastest), `full` (beyond the paper: every blob parameter by block
     /// Levenberg–Marquardt on a geometric residual with sign constraints; about 3× lower mean
-    /// error, every blob alive, ~10 s on 300 blobs) or `none` (the "before optimisation" model).
-    #[arg(long, value_enum, default_value_t = OptimiserArg::Faithful)]
+    /// error, every blob alive; the default) or `none` (the "before optimisation" model).
+    #[arg(long, value_enum, default_value_t = OptimiserArg::Full)]
     pub optimiser: OptimiserArg,
-    /// Shorthand for `--optimiser full`.
+    /// Shorthand for `--optimiser full` (the default).
     #[arg(long, conflicts_with = "optimiser")]
     pub full: bool,
+    /// Shorthand for `--optimiser faithful`.
+    #[arg(long, conflicts_with_all = ["optimiser", "full"])]
+    pub faithful: bool,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -98,11 +101,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ShiftArg::Inward => ObstacleShift::Inward,
             ShiftArg::None => ObstacleShift::None,
         },
-        optimisation: match (args.full, args.optimiser) {
-            (true, _) | (_, OptimiserArg::Full) => {
+        optimisation: match (args.faithful, args.optimiser) {
+            (true, _) | (_, OptimiserArg::Faithful) => {
+                Optimisation::Faithful(FaithfulConfig::default())
+            }
+            (_, OptimiserArg::Full) => {
                 Optimisation::Full(FaithfulConfig::default(), FullConfig::default())
             }
-            (_, OptimiserArg::Faithful) => Optimisation::Faithful(FaithfulConfig::default()),
             (_, OptimiserArg::None) => Optimisation::None,
         },
         seed: args.seed,
