@@ -7,45 +7,13 @@ use nephele::geometry::Aabb;
 use nephele::mesh::Mesh;
 use nephele::mesh::sample::{SurfaceSamples, sample_surface};
 
-/// Octahedron subdivided `level` times, projected to the unit sphere, mapped by `f`.
+/// Icosphere subdivided `level` times, mapped by `f`.
 fn sphere_mesh(level: usize, f: impl Fn(DVec3) -> DVec3) -> Mesh {
-    let mut positions = vec![
-        DVec3::X,
-        -DVec3::X,
-        DVec3::Y,
-        -DVec3::Y,
-        DVec3::Z,
-        -DVec3::Z,
-    ];
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    for _ in 0..level {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::new();
-        for &[a, b, c] in &triangles {
-            let mut m = |x: u32, y: u32| -> u32 {
-                *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
-                    positions.push((positions[x as usize] + positions[y as usize]).normalize());
-                    positions.len() as u32 - 1
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            next.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-        }
-        triangles = next;
+    let mut m = nephele::mesh::builtin::icosphere(level as u32);
+    for p in &mut m.positions {
+        *p = f(*p);
     }
-    Mesh {
-        positions: positions.into_iter().map(f).collect(),
-        triangles,
-    }
+    m
 }
 
 /// Two meshes as one.

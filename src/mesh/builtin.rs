@@ -7,6 +7,7 @@
 mod decimate;
 mod figures;
 mod icosphere;
+pub use icosphere::icosphere;
 mod knot;
 mod sdf;
 

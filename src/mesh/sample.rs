@@ -187,50 +187,13 @@ pub fn vertex_mean_curvature(mesh: &Mesh) -> Vec<f64> {
 pub(crate) mod tests {
     use super::*;
 
-    /// Octahedron subdivided `level` times and pushed onto the sphere of radius `r`.
+    /// Icosphere subdivided `level` times, radius `r`.
     pub(crate) fn sphere(r: f64, level: usize) -> Mesh {
-        let mut positions = vec![
-            DVec3::X,
-            -DVec3::X,
-            DVec3::Y,
-            -DVec3::Y,
-            DVec3::Z,
-            -DVec3::Z,
-        ];
-        let mut triangles: Vec<[u32; 3]> = vec![
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ];
-        for _ in 0..level {
-            let mut mid = std::collections::HashMap::new();
-            let mut next = Vec::new();
-            let mut midpoint = |a: u32, b: u32, pos: &mut Vec<DVec3>| -> u32 {
-                *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    pos.push(((pos[a as usize] + pos[b as usize]) * 0.5).normalize());
-                    pos.len() as u32 - 1
-                })
-            };
-            for &[a, b, c] in &triangles {
-                let ab = midpoint(a, b, &mut positions);
-                let bc = midpoint(b, c, &mut positions);
-                let ca = midpoint(c, a, &mut positions);
-                next.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-            }
-            triangles = next;
-        }
-        for p in &mut positions {
+        let mut m = crate::mesh::builtin::icosphere(level as u32);
+        for p in &mut m.positions {
             *p *= r;
         }
-        Mesh {
-            positions,
-            triangles,
-        }
+        m
     }
 
     #[test]
