@@ -141,6 +141,9 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
                 bounds.diagonal(),
                 THRESHOLD,
             );
+            // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them,
+            // keeping the selection order of the rest.
+            blobs.retain(Blob::is_live);
             let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
             (before, after)
         }

@@ -182,6 +182,12 @@ pub fn grow_candidates(
         margin: CONTACT_MARGIN * diagonal,
         min_stage3_axis: STAGE3_MIN_AXIS * (mesh.area() / obstacles.len() as f64).sqrt(),
     };
+    let guard = parry3d_f64::shape::TriMesh::with_flags(
+        mesh.positions.clone(),
+        mesh.triangles.clone(),
+        parry3d_f64::shape::TriMeshFlags::ORIENTED,
+    )
+    .ok();
     seeds
         .par_iter()
         .map_init(Vec::new, |order, &v| {
@@ -191,7 +197,16 @@ pub fn grow_candidates(
             }
             let p = seed_point(cfg, pos, n, diagonal);
             obstacles.chunks_by_distance(p, order);
-            let g = grow_seed(&obstacles, order, p, n, &limits)?;
+            let mut g = grow_seed(&obstacles, order, p, n, &limits)?;
+            if g.stage > 1 && leaves_mesh(guard.as_ref(), &g.ellipsoid, 0.005 * diagonal) {
+                // Grown through a gap between samples: keep the stage-1 sphere, always safe.
+                g.ellipsoid = Ellipsoid {
+                    center: p - n * g.sphere_radius,
+                    rotation: glam::DQuat::IDENTITY,
+                    semi_axes: DVec3::splat(g.sphere_radius),
+                };
+                g.stage = 1;
+            }
             let h = curvature[v as usize];
             let w = 1.0 + cfg.curvature_weight * h.abs() * diagonal;
             Some(Candidate {
@@ -211,6 +226,39 @@ pub fn grow_candidates(
         .into_iter()
         .flatten()
         .collect()
+}
+
+/// True when a point of `e` (its axis ends and the corners of its inscribed box, at 95 %) lies
+/// outside the mesh by more than `tolerance`. Point samples can leave gaps that an elongated
+/// quadric slips through (between a cow's legs, along thin parts); this catches such needles.
+/// Without a usable mesh (`None`: non-manifold), nothing is rejected.
+fn leaves_mesh(mesh: Option<&parry3d_f64::shape::TriMesh>, e: &Ellipsoid, tolerance: f64) -> bool {
+    use parry3d_f64::query::PointQuery;
+    let Some(mesh) = mesh else {
+        return false;
+    };
+    let c = 0.95 / 3f64.sqrt();
+    let axes = [
+        DVec3::X,
+        -DVec3::X,
+        DVec3::Y,
+        -DVec3::Y,
+        DVec3::Z,
+        -DVec3::Z,
+    ]
+    .map(|a| a * 0.95);
+    let corners = (0..8).map(|k| {
+        DVec3::new(
+            if k & 1 == 0 { c } else { -c },
+            if k & 2 == 0 { c } else { -c },
+            if k & 4 == 0 { c } else { -c },
+        )
+    });
+    axes.into_iter().chain(corners).any(|local| {
+        let x = e.center + e.rotation * (local * e.semi_axes);
+        let proj = mesh.project_local_point(x, true);
+        !proj.is_inside && proj.point.distance(x) > tolerance
+    })
 }
 
 /// Greedy weighted maximum coverage over a voxel grid of `bounds`; returns candidate indices
