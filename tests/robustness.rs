@@ -25,6 +25,20 @@ fn text(o: &Output) -> String {
     )
 }
 
+/// Run nephele in `dir` with `args`.
+fn run_in(dir: &Path, args: &[&str]) -> Output {
+    bin().args(args).current_dir(dir).output().unwrap()
+}
+
+/// Fail when `dir` holds anything besides `inputs`.
+fn assert_nothing_left(dir: &Path, inputs: &[&str]) {
+    assert_eq!(
+        outputs(dir, inputs),
+        Vec::<String>::new(),
+        "files left behind"
+    );
+}
+
 /// Files in `dir` other than the inputs.
 fn outputs(dir: &Path, inputs: &[&str]) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
@@ -92,8 +106,9 @@ fn bad_meshes_fail_cleanly_in_fit_and_eval() {
     let model = dir.join("m.ron");
     for (name, bytes) in bad_meshes() {
         std::fs::write(dir.join(name), &bytes).unwrap();
-        let out = bin()
-            .args([
+        let out = run_in(
+            &dir,
+            &[
                 "fit",
                 name,
                 "-o",
@@ -104,10 +119,8 @@ fn bad_meshes_fail_cleanly_in_fit_and_eval() {
                 "20",
                 "--samples",
                 "500",
-            ])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+            ],
+        );
         let t = text(&out);
         assert!(!out.status.success(), "fit {name} succeeded:\n{t}");
         assert!(!t.contains("panicked"), "fit {name} panicked:\n{t}");
@@ -116,11 +129,7 @@ fn bad_meshes_fail_cleanly_in_fit_and_eval() {
             "fit {name}: message does not name the file:\n{t}"
         );
         assert!(!model.exists(), "fit {name} left an output file");
-        let out = bin()
-            .args(["eval", name, "missing.ron"])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+        let out = run_in(&dir, &["eval", name, "missing.ron"]);
         assert!(
             !out.status.success() && !text(&out).contains("panicked"),
             "eval {name}: {}",
@@ -128,11 +137,7 @@ fn bad_meshes_fail_cleanly_in_fit_and_eval() {
         );
     }
     let inputs: Vec<&str> = bad_meshes().iter().map(|m| m.0).collect();
-    assert_eq!(
-        outputs(&dir, &inputs),
-        Vec::<String>::new(),
-        "files left behind"
-    );
+    assert_nothing_left(&dir, &inputs);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -191,8 +196,9 @@ fn recoverable_meshes_warn_and_fit() {
         ("two.obj", two, None),
     ] {
         std::fs::write(dir.join(name), body).unwrap();
-        let out = bin()
-            .args([
+        let out = run_in(
+            &dir,
+            &[
                 "fit",
                 name,
                 "-o",
@@ -205,10 +211,8 @@ fn recoverable_meshes_warn_and_fit() {
                 "2000",
                 "--optimiser",
                 "faithful",
-            ])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+            ],
+        );
         let t = text(&out);
         assert!(out.status.success(), "fit {name} failed:\n{t}");
         if let Some(w) = warning {
@@ -239,21 +243,13 @@ fn bad_models_fail_cleanly_in_mesh_and_eval() {
     std::fs::write(dir.join("cube.obj"), cube_obj()).unwrap();
     for (name, bytes) in &models {
         std::fs::write(dir.join(name), bytes).unwrap();
-        let out = bin()
-            .args(["mesh", name, "-o", "out.obj"])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+        let out = run_in(&dir, &["mesh", name, "-o", "out.obj"]);
         let t = text(&out);
         assert!(
             !out.status.success() && !t.contains("panicked") && t.contains(name),
             "mesh {name}:\n{t}"
         );
-        let out = bin()
-            .args(["eval", "cube.obj", name])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+        let out = run_in(&dir, &["eval", "cube.obj", name]);
         let t = text(&out);
         assert!(
             !out.status.success() && !t.contains("panicked") && t.contains(name),
@@ -268,11 +264,7 @@ fn bad_models_fail_cleanly_in_mesh_and_eval() {
     }
     let mut inputs: Vec<&str> = models.iter().map(|m| m.0).collect();
     inputs.push("cube.obj");
-    assert_eq!(
-        outputs(&dir, &inputs),
-        Vec::<String>::new(),
-        "files left behind"
-    );
+    assert_nothing_left(&dir, &inputs);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -312,11 +304,7 @@ fn bad_scenes_fail_cleanly_in_render() {
     ];
     for (name, body) in &scenes {
         std::fs::write(dir.join(name), body).unwrap();
-        let out = bin()
-            .args(["render", name, "--output", "out"])
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+        let out = run_in(&dir, &["render", name, "--output", "out"]);
         let t = text(&out);
         assert!(!out.status.success(), "render {name} succeeded:\n{t}");
         assert!(
@@ -331,11 +319,10 @@ fn bad_scenes_fail_cleanly_in_render() {
         "Scene(target: Fit(mesh: \"builtin:sphere\", blobs: 10))",
     )
     .unwrap();
-    let out = bin()
-        .args(["render", "ok.ron", "--frames", "5..2", "--output", "out"])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
+    let out = run_in(
+        &dir,
+        &["render", "ok.ron", "--frames", "5..2", "--output", "out"],
+    );
     assert!(
         !out.status.success() && !text(&out).contains("panicked"),
         "{}",
@@ -355,11 +342,10 @@ fn interrupted_render_leaves_no_finished_looking_partial_frame() {
     )
     .unwrap();
     // Fit first (cached), so the kill lands while frames are being written.
-    let out = bin()
-        .args(["render", "shot.ron", "--output", "out", "--frames", "1..1"])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
+    let out = run_in(
+        &dir,
+        &["render", "shot.ron", "--output", "out", "--frames", "1..1"],
+    );
     assert!(out.status.success(), "{}", text(&out));
     for delay_ms in [150u64, 400, 900] {
         let mut child = bin()
@@ -388,11 +374,7 @@ fn interrupted_render_leaves_no_finished_looking_partial_frame() {
         }
     }
     // Resuming after the kills completes the shot.
-    let out = bin()
-        .args(["render", "shot.ron", "--output", "out"])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
+    let out = run_in(&dir, &["render", "shot.ron", "--output", "out"]);
     assert!(out.status.success(), "{}", text(&out));
     let pngs = std::fs::read_dir(dir.join("out"))
         .unwrap()
