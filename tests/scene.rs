@@ -407,3 +407,46 @@ fn cli_resumes_and_force_rerenders() {
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (64, 36));
 }
+
+/// Seeded mutation fuzzing of the scene parser (the always-run tier; see fuzz/README.md):
+/// byte flips, insertions and truncations of every shipped scene never panic, and every error
+/// names the file.
+#[test]
+fn mutated_scenes_never_panic() {
+    use rand::{RngExt, SeedableRng};
+    let path = Path::new("mutant.ron");
+    let originals: Vec<Vec<u8>> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "ron"))
+        .map(|p| std::fs::read(p).unwrap())
+        .collect();
+    assert!(!originals.is_empty());
+    let alphabet = b"(){}[],:\"0123456789.-+eE_abcxyzNaNinf \n/";
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(20261122);
+    for round in 0..3000 {
+        let mut bytes = originals[round % originals.len()].clone();
+        for _ in 0..rng.random_range(1..6) {
+            let at = rng.random_range(0..bytes.len().max(1));
+            match rng.random_range(0..4) {
+                0 => bytes.truncate(at),
+                1 => bytes.insert(
+                    at.min(bytes.len()),
+                    alphabet[rng.random_range(0..alphabet.len())],
+                ),
+                2 if at < bytes.len() => bytes[at] = rng.random::<u8>(),
+                _ if at < bytes.len() => {
+                    bytes.remove(at);
+                }
+                _ => {}
+            }
+        }
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let result = std::panic::catch_unwind(|| nephele::scene::scene_from_str(path, &text));
+        match result {
+            Err(_) => panic!("round {round}: the parser panicked on:\n{text}"),
+            Ok(Err(e)) => assert!(e.to_string().contains("mutant.ron"), "round {round}: {e}"),
+            Ok(Ok(_)) => {}
+        }
+    }
+}
