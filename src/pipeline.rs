@@ -179,3 +179,59 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
         timings,
     }
 }
+
+/// One round of [`fit_to_error`]: the blob budget tried and the Hausdorff error it gave.
+#[derive(Clone, Copy, Debug)]
+pub struct BudgetRound {
+    /// Blobs asked for.
+    pub blobs: usize,
+    /// Blobs in the model.
+    pub kept: usize,
+    /// Hausdorff distance to the mesh, % of its bounding-box diagonal.
+    pub hausdorff_pct: f64,
+}
+
+/// Fit with a growing blob budget (×1.5 a round, from `cfg.blobs`, at most `max_blobs`) until
+/// the Hausdorff error of the polygonized model against the mesh, measured by Metro, is at most
+/// `max_error_pct` % of the diagonal. Stops early when the selection saturates (asking for more
+/// blobs no longer adds any). Returns the last fit and every round.
+pub fn fit_to_error(
+    cfg: &FitConfig,
+    input: &LoadedMesh,
+    max_error_pct: f64,
+    max_blobs: usize,
+) -> (FitOutput, Vec<BudgetRound>) {
+    use crate::blobby::polygonize::polygonize;
+    use crate::eval::metro::{MetroConfig, compare};
+    // A budget decision needs the worst gap, not a publication-grade mean: every vertex of
+    // both surfaces plus 60k-200k area samples find it at a fraction of the default's cost.
+    let metro = MetroConfig {
+        samples_per_face: 1,
+        min_samples: 60_000,
+        max_samples: 200_000,
+        ..MetroConfig::default()
+    };
+    let mut blobs = cfg.blobs.max(1);
+    let mut rounds = Vec::new();
+    loop {
+        let out = fit(
+            &FitConfig {
+                blobs,
+                ..cfg.clone()
+            },
+            input,
+        );
+        let surface = polygonize(&out.model.field(), 160);
+        let error = compare(&input.mesh, &surface, &metro).hausdorff_pct;
+        rounds.push(BudgetRound {
+            blobs,
+            kept: out.model.blobs.len(),
+            hausdorff_pct: error,
+        });
+        let saturated = out.stats.selected < blobs;
+        if error <= max_error_pct || blobs >= max_blobs || saturated {
+            return (out, rounds);
+        }
+        blobs = (blobs + blobs / 2).min(max_blobs);
+    }
+}

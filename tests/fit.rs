@@ -96,3 +96,26 @@ fn model_file_is_identical_at_one_and_two_threads() {
     assert!(one == two, "model files differ between 1 and 2 threads");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn max_error_mode_adds_blobs_until_the_target() {
+    const TARGET: f64 = 3.0;
+    let knot = nephele::mesh::load("builtin:torus-knot").unwrap();
+    let cfg = FitConfig {
+        blobs: 8,
+        ..small(Optimisation::Faithful(FaithfulConfig::default()))
+    };
+    let (out, rounds) = nephele::pipeline::fit_to_error(&cfg, &knot, TARGET, 200);
+    assert!(rounds.len() >= 2, "{rounds:?}");
+    assert!(
+        rounds.windows(2).all(|w| w[1].blobs > w[0].blobs),
+        "{rounds:?}"
+    );
+    let last = rounds.last().unwrap();
+    assert!(
+        last.hausdorff_pct <= TARGET || last.blobs == 200,
+        "{rounds:?}"
+    );
+    assert!(last.hausdorff_pct < rounds[0].hausdorff_pct, "{rounds:?}");
+    assert_eq!(out.model.blobs.len(), last.kept);
+}

@@ -43,6 +43,13 @@ pub struct Args {
     /// Shorthand for `--optimiser faithful`.
     #[arg(long, conflicts_with_all = ["optimiser", "full"])]
     pub faithful: bool,
+    /// Add blobs (×1.5 a round, starting from --blobs) until the Hausdorff error against the
+    /// mesh is at most this percentage of its bounding-box diagonal (measured by Metro).
+    #[arg(long, value_name = "PERCENT")]
+    pub max_error: Option<f64>,
+    /// Upper bound on the blob budget for --max-error.
+    #[arg(long, default_value_t = 3000)]
+    pub max_blobs: usize,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -113,7 +120,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         ..FitConfig::default()
     };
-    let out = pipeline::fit(&cfg, &loaded);
+    let out = match args.max_error {
+        Some(pct) => {
+            anyhow::ensure!(
+                pct.is_finite() && pct > 0.0,
+                "--max-error must be a positive percentage, got {pct}"
+            );
+            let (out, rounds) = pipeline::fit_to_error(&cfg, &loaded, pct, args.max_blobs);
+            for r in &rounds {
+                eprintln!(
+                    "  budget {:>5} blobs ({} kept): Hausdorff {:.3}% of D",
+                    r.blobs, r.kept, r.hausdorff_pct
+                );
+            }
+            if rounds.last().is_some_and(|r| r.hausdorff_pct > pct) {
+                eprintln!(
+                    "warning: stopped above --max-error {pct}% (budget or selection exhausted)"
+                );
+            }
+            out
+        }
+        None => pipeline::fit(&cfg, &loaded),
+    };
     nephele::blobby::save_model(&args.output, &out.model)
         .with_context(|| format!("writing the model to {}", args.output.display()))?;
     let s = &out.stats;
