@@ -6,17 +6,29 @@
 //! Solver: block-coordinate Levenberg–Marquardt. One blob's 10 parameters against the points
 //! inside its support form a 10×10 normal system; blobs that share no point are updated in
 //! parallel (greedy colouring of the overlap graph, so the result does not depend on the thread
-//! count); `|∇F|` is held fixed within a sweep. Dead blobs (tiny `B`) are re-seeded where the
-//! residual is largest.
+//! count); `|∇F|` is held fixed within a sweep. Dead blobs (tiny `B`) can be re-seeded where
+//! the residual is largest (`FullConfig::b_floor`, off by default: the pipeline drops them).
+//!
+//! Files: `points` builds what is fitted, `params` is one blob's parametrisation and Jacobian,
+//! `sparsity` says which points each blob touches and which blobs can move together.
 //!
 //! Parametrisation: the field of a blob depends only on its influence radii `r = s·√(1+A)`:
 //! `f = B²(1 − |diag(1/r)·Rᵀ(x−c)|²)²`, so `A` is kept fixed and `s` is moved with `r`.
 
-use glam::{DMat3, DQuat, DVec3};
+mod params;
+mod points;
+mod sparsity;
+
+pub use points::far_field_points;
+
+use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 use super::{Blob, BlobField};
 use crate::mesh::sample::SurfaceSamples;
+use params::{Eval, Params};
+use points::{Kind, Points, constraint_points};
+use sparsity::{colour, incidence};
 
 /// Settings of the full optimisation. Offsets are fractions of the diagonal `D`.
 #[derive(Clone, Debug)]
@@ -71,278 +83,6 @@ pub struct FullReport {
     pub reseeded: usize,
 }
 
-/// What a constraint point wants of the field.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
-    Surface,
-    Inside,
-    Outside,
-}
-
-/// Constraint points as SoA.
-struct Points {
-    x: Vec<DVec3>,
-    n: Vec<DVec3>,
-    kind: Vec<Kind>,
-}
-
-/// Surface samples bucketed in a uniform grid, for "is any sample within r of q?" queries.
-struct SampleGrid<'a> {
-    points: &'a [DVec3],
-    inv_cell: f64,
-    /// `(cell key, sample index)` sorted by key.
-    keyed: Vec<(u64, u32)>,
-}
-
-impl<'a> SampleGrid<'a> {
-    fn new(points: &'a [DVec3], cell: f64) -> SampleGrid<'a> {
-        let inv_cell = 1.0 / cell;
-        let mut keyed: Vec<(u64, u32)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, &p)| (Self::key(Self::cell_of(p, inv_cell)), i as u32))
-            .collect();
-        keyed.sort_unstable();
-        SampleGrid {
-            points,
-            inv_cell,
-            keyed,
-        }
-    }
-
-    fn cell_of(p: DVec3, inv_cell: f64) -> [i64; 3] {
-        let c = (p * inv_cell).floor();
-        [c.x as i64, c.y as i64, c.z as i64]
-    }
-
-    fn key(c: [i64; 3]) -> u64 {
-        // 21 bits an axis, offset so negative cells pack too.
-        let f = |v: i64| ((v + (1 << 20)) as u64) & 0x1F_FFFF;
-        f(c[0]) | (f(c[1]) << 21) | (f(c[2]) << 42)
-    }
-
-    /// True when some sample lies within `r` (at most one cell) of `q`.
-    fn any_within(&self, q: DVec3, r: f64) -> bool {
-        let c = Self::cell_of(q, self.inv_cell);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let k = Self::key([c[0] + dx, c[1] + dy, c[2] + dz]);
-                    let lo = self.keyed.partition_point(|e| e.0 < k);
-                    let hit = self.keyed[lo..]
-                        .iter()
-                        .take_while(|e| e.0 == k)
-                        .any(|e| self.points[e.1 as usize].distance_squared(q) < r * r);
-                    if hit {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
-    }
-}
-
-/// Surface points and offset constraint points. An offset point is kept only when no surface
-/// sample is nearer than 80 % of its offset: a point pushed through a thin part or into a
-/// concavity would otherwise demand the wrong sign.
-fn constraint_points(
-    cfg: &FullConfig,
-    samples: &SurfaceSamples,
-    far: &[(DVec3, bool)],
-    diag: f64,
-) -> Points {
-    let m = samples.positions.len();
-    let stride = m.div_ceil(cfg.max_points.max(1)).max(1);
-    let mut pts = Points {
-        x: Vec::new(),
-        n: Vec::new(),
-        kind: Vec::new(),
-    };
-    let offsets = std::iter::once((Kind::Surface, 0.0))
-        .chain(cfg.inside_offsets.iter().map(|&o| (Kind::Inside, -o)))
-        .chain(cfg.outside_offsets.iter().map(|&o| (Kind::Outside, o)));
-    for (kind, off) in offsets {
-        // Cells as wide as the clearance radius: the query then scans 27 small cells, not
-        // 27 cells sized for the largest offset (that was a third of the whole fit's time).
-        let r = 0.8 * off.abs() * diag;
-        let grid = (off != 0.0).then(|| SampleGrid::new(&samples.positions, r));
-        let candidates: Vec<(DVec3, DVec3)> = (0..m)
-            .step_by(stride)
-            .collect::<Vec<_>>()
-            .par_iter()
-            .filter_map(|&i| {
-                let n = samples.normals[i];
-                let x = samples.positions[i] + n * (off * diag);
-                let clear = grid.as_ref().is_none_or(|g| !g.any_within(x, r));
-                clear.then_some((x, n))
-            })
-            .collect();
-        for (x, n) in candidates {
-            pts.x.push(x);
-            pts.n.push(n);
-            pts.kind.push(kind);
-        }
-    }
-    for &(x, inside) in far {
-        pts.x.push(x);
-        pts.n.push(DVec3::ZERO);
-        pts.kind
-            .push(if inside { Kind::Inside } else { Kind::Outside });
-    }
-    pts
-}
-
-/// Far-field sign constraints: points of a coarse grid over the mesh's bounds (expanded by
-/// 15 % of `D`, `resolution` cells on the longest side) that lie farther than `1.5 %` of `D` from
-/// the surface, with whether they are inside. They stop blobs from growing a spurious surface
-/// away from the mesh, where no offset sample reaches. Inside/outside comes from parry's
-/// pseudo-normal test, so the mesh must be consistently oriented; an unusable mesh gives none.
-pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVec3, bool)> {
-    use parry3d_f64::query::PointQuery;
-    use parry3d_f64::shape::{TriMesh, TriMeshFlags};
-    let bounds = mesh.bounds();
-    let diag = bounds.diagonal();
-    let bounds = bounds.expanded(0.15 * diag);
-    let Ok(tri) = TriMesh::with_flags(
-        mesh.positions.clone(),
-        mesh.triangles.clone(),
-        TriMeshFlags::ORIENTED,
-    ) else {
-        return Vec::new();
-    };
-    let size = bounds.size();
-    let cell = size.max_element() / resolution.max(2) as f64;
-    let n = [
-        (size.x / cell).ceil() as usize + 1,
-        (size.y / cell).ceil() as usize + 1,
-        (size.z / cell).ceil() as usize + 1,
-    ];
-    (0..n[0] * n[1] * n[2])
-        .into_par_iter()
-        .filter_map(|k| {
-            let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
-            let x = bounds.min + DVec3::new(i as f64, j as f64, l as f64) * cell;
-            let proj = tri.project_local_point(x, false);
-            let d = proj.point.distance(x);
-            (d > 0.015 * diag).then_some((x, proj.is_inside))
-        })
-        .collect()
-}
-
-/// One blob in optimisation coordinates.
-#[derive(Clone, Copy, Debug)]
-struct Params {
-    c: DVec3,
-    q: DQuat,
-    log_r: DVec3,
-    log_b: f64,
-}
-
-impl Params {
-    fn from_blob(b: &Blob) -> Params {
-        let r = b.semi_axes * (1.0 + b.a).sqrt();
-        Params {
-            c: b.center,
-            q: b.rotation,
-            log_r: DVec3::new(r.x.ln(), r.y.ln(), r.z.ln()),
-            log_b: b.b.abs().max(1e-12).ln(),
-        }
-    }
-
-    fn to_blob(self, a: f64) -> Blob {
-        let r = DVec3::new(self.log_r.x.exp(), self.log_r.y.exp(), self.log_r.z.exp());
-        Blob {
-            center: self.c,
-            rotation: self.q.normalize(),
-            semi_axes: r / (1.0 + a).sqrt(),
-            a,
-            b: self.log_b.exp(),
-        }
-    }
-
-    /// Apply a step `[dc (3, in units of `scale`), ω (3), d log r (3), d log B]`, keeping the
-    /// influence radii within `[1e-3, 0.5]·scale`, their ratio within 8 and `B` within
-    /// `[1e-3, 50]` (beyond these a blob is a needle or a spike that no sample constrains).
-    fn stepped(self, d: &[f64; 10], scale: f64) -> Params {
-        let w = DVec3::new(d[3], d[4], d[5]);
-        let lo = (1e-3 * scale).ln();
-        let hi = (0.5 * scale).ln();
-        let mut log_r =
-            (self.log_r + DVec3::new(d[6], d[7], d[8])).clamp(DVec3::splat(lo), DVec3::splat(hi));
-        let max_ratio = 8f64.ln();
-        log_r = log_r.max(DVec3::splat(log_r.max_element() - max_ratio));
-        Params {
-            c: self.c + DVec3::new(d[0], d[1], d[2]) * scale,
-            q: (self.q * DQuat::from_scaled_axis(w)).normalize(),
-            log_r,
-            log_b: (self.log_b + d[9]).clamp(1e-3f64.ln(), 50f64.ln()),
-        }
-    }
-}
-
-/// A blob's field prepared for evaluation: `y = Rᵀ(x−c)`, `u = Σ (y_k/r_k)²`.
-struct Eval {
-    c: DVec3,
-    rt: DMat3,
-    inv_r2: DVec3,
-    b2: f64,
-}
-
-impl Eval {
-    fn new(p: &Params) -> Eval {
-        let r = DVec3::new(p.log_r.x.exp(), p.log_r.y.exp(), p.log_r.z.exp());
-        Eval {
-            c: p.c,
-            rt: DMat3::from_quat(p.q).transpose(),
-            inv_r2: DVec3::ONE / (r * r),
-            b2: (2.0 * p.log_b).exp(),
-        }
-    }
-
-    #[inline]
-    fn value(&self, x: DVec3) -> f64 {
-        let y = self.rt * (x - self.c);
-        let u = (y * y * self.inv_r2).element_sum();
-        if u < 1.0 {
-            self.b2 * (1.0 - u) * (1.0 - u)
-        } else {
-            0.0
-        }
-    }
-
-    /// `f` and `∂f/∂θ` for `θ = [c/scale, ω, log r, log B]`.
-    #[inline]
-    fn value_and_jacobian(&self, x: DVec3, scale: f64) -> (f64, [f64; 10]) {
-        let y = self.rt * (x - self.c);
-        let v = y * self.inv_r2;
-        let u = (y * v).element_sum();
-        if u >= 1.0 {
-            return (0.0, [0.0; 10]);
-        }
-        let k = 1.0 - u;
-        let f = self.b2 * k * k;
-        let df_du = -2.0 * self.b2 * k;
-        // ∂u/∂c = −2 R v; ∂u/∂ω = 2 (v × y); ∂u/∂log r_k = −2 y_k v_k.
-        let du_dc = self.rt.transpose() * v * (-2.0 * scale);
-        let du_dw = v.cross(y) * 2.0;
-        let du_dlr = y * v * -2.0;
-        let j = [
-            df_du * du_dc.x,
-            df_du * du_dc.y,
-            df_du * du_dc.z,
-            df_du * du_dw.x,
-            df_du * du_dw.y,
-            df_du * du_dw.z,
-            df_du * du_dlr.x,
-            df_du * du_dlr.y,
-            df_du * du_dlr.z,
-            2.0 * f,
-        ];
-        (f, j)
-    }
-}
-
 /// Residual of one point given its field value `F`, and its derivative `dr/dF`.
 #[inline]
 fn residual(kind: Kind, big_f: f64, inv_g: f64, cfg: &FullConfig) -> (f64, f64) {
@@ -353,105 +93,6 @@ fn residual(kind: Kind, big_f: f64, inv_g: f64, cfg: &FullConfig) -> (f64, f64) 
         Kind::Outside if big_f > -cfg.margin => ((big_f + cfg.margin) * w, w),
         _ => (0.0, 0.0),
     }
-}
-
-/// Per blob, the indices of the points inside its (slightly enlarged) support, as CSR.
-fn incidence(blobs: &[Blob], pts: &Points) -> (Vec<usize>, Vec<u32>) {
-    let widened: Vec<Blob> = blobs
-        .iter()
-        .map(|b| Blob {
-            semi_axes: b.semi_axes * 1.15,
-            b: if b.is_live() { 1.0 } else { 0.0 },
-            ..*b
-        })
-        .collect();
-    let index = BlobField::new(&widened, 1.0);
-    // Support tests as a matrix product: `x` is inside when |M(x − c)|² < 1.
-    let frames: Vec<(DMat3, DVec3)> = widened
-        .iter()
-        .map(|b| {
-            let r = b.semi_axes * (1.0 + b.a).sqrt();
-            let m = DMat3::from_diagonal(1.0 / r) * DMat3::from_quat(b.rotation.inverse());
-            (m, b.center)
-        })
-        .collect();
-    let per_point: Vec<Vec<u32>> = pts
-        .x
-        .par_iter()
-        .map(|&x| {
-            index
-                .blobs_near(x)
-                .iter()
-                .copied()
-                .filter(|&i| {
-                    let (m, c) = frames[i as usize];
-                    widened[i as usize].b > 0.0 && (m * (x - c)).length_squared() < 1.0
-                })
-                .collect()
-        })
-        .collect();
-    let mut start = vec![0usize; blobs.len() + 1];
-    for list in &per_point {
-        for &i in list {
-            start[i as usize + 1] += 1;
-        }
-    }
-    for i in 0..blobs.len() {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut entries = vec![0u32; start[blobs.len()]];
-    for (p, list) in per_point.iter().enumerate() {
-        for &i in list {
-            entries[fill[i as usize]] = p as u32;
-            fill[i as usize] += 1;
-        }
-    }
-    (start, entries)
-}
-
-/// Greedy colouring of the graph "blobs share a point": blobs of one colour can be updated
-/// in parallel. Deterministic (blobs in index order, smallest free colour).
-fn colour(n_blobs: usize, start: &[usize], entries: &[u32], n_points: usize) -> Vec<Vec<usize>> {
-    // The transpose of the incidence (point → blobs), as CSR.
-    let mut p_start = vec![0usize; n_points + 1];
-    for &p in entries {
-        p_start[p as usize + 1] += 1;
-    }
-    for p in 0..n_points {
-        p_start[p + 1] += p_start[p];
-    }
-    let mut fill = p_start.clone();
-    let mut p_blobs = vec![0u32; entries.len()];
-    for i in 0..n_blobs {
-        for &p in &entries[start[i]..start[i + 1]] {
-            p_blobs[fill[p as usize]] = i as u32;
-            fill[p as usize] += 1;
-        }
-    }
-    let mut colour_of = vec![usize::MAX; n_blobs];
-    // `taken[c] == i + 1` marks colour `c` as used by a neighbour of blob `i`.
-    let mut taken: Vec<usize> = Vec::new();
-    for i in 0..n_blobs {
-        for &p in &entries[start[i]..start[i + 1]] {
-            for &j in &p_blobs[p_start[p as usize]..p_start[p as usize + 1]] {
-                let c = colour_of[j as usize];
-                if c != usize::MAX {
-                    if c >= taken.len() {
-                        taken.resize(c + 1, 0);
-                    }
-                    taken[c] = i + 1;
-                }
-            }
-        }
-        colour_of[i] = (0..).find(|&c| taken.get(c) != Some(&(i + 1))).unwrap_or(0);
-    }
-    let n_colours = colour_of.iter().copied().max().map_or(0, |c| c + 1);
-    let mut groups = vec![Vec::new(); n_colours];
-    for (i, &c) in colour_of.iter().enumerate() {
-        groups[c].push(i);
-    }
-    groups
 }
 
 /// Solve the 10×10 symmetric system `(H + λ·diag(H) + ε) d = −g` by Cholesky; `None` if singular.
@@ -768,46 +409,6 @@ pub fn optimise_full(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn jacobian_matches_finite_differences() {
-        let p = Params {
-            c: DVec3::new(0.1, -0.2, 0.3),
-            q: DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.5, 1.0),
-            log_r: DVec3::new(0.2, -0.1, 0.05),
-            log_b: 0.4,
-        };
-        let x = DVec3::new(0.5, 0.1, 0.2);
-        let scale = 4.0;
-        let (_, j) = Eval::new(&p).value_and_jacobian(x, scale);
-        for a in 0..10 {
-            let h = 1e-6;
-            let mut d = [0.0; 10];
-            d[a] = h;
-            let fp = Eval::new(&p.stepped(&d, scale)).value(x);
-            d[a] = -h;
-            let fm = Eval::new(&p.stepped(&d, scale)).value(x);
-            let fd = (fp - fm) / (2.0 * h);
-            assert!(
-                (fd - j[a]).abs() < 1e-5 * (1.0 + fd.abs()),
-                "param {a}: analytic {} vs fd {fd}",
-                j[a]
-            );
-        }
-    }
-
-    #[test]
-    fn blob_params_round_trip() {
-        let b = Blob {
-            center: DVec3::new(1.0, 2.0, 3.0),
-            rotation: DQuat::from_rotation_y(0.7),
-            semi_axes: DVec3::new(0.5, 0.25, 1.5),
-            a: 1.3,
-            b: 2.2,
-        };
-        let back = Params::from_blob(&b).to_blob(b.a);
-        assert!((back.semi_axes - b.semi_axes).length() < 1e-12 && (back.b - b.b).abs() < 1e-12);
-    }
 
     #[test]
     fn fits_a_sphere_from_a_poor_start() {
