@@ -27,39 +27,61 @@ pub(super) fn incidence(blobs: &[Blob], pts: &Points) -> (Vec<usize>, Vec<u32>) 
             (m, b.center)
         })
         .collect();
-    let per_point: Vec<Vec<u32>> = pts
+    // Point → blobs as CSR, built per chunk of points (one allocation a chunk, not a point).
+    let inside = |x: DVec3, i: u32| {
+        let (m, c) = frames[i as usize];
+        widened[i as usize].b > 0.0 && (m * (x - c)).length_squared() < 1.0
+    };
+    let chunks: Vec<(Vec<u32>, Vec<u32>)> = pts
         .x
-        .par_iter()
-        .map(|&x| {
-            index
-                .blobs_near(x)
-                .iter()
-                .copied()
-                .filter(|&i| {
-                    let (m, c) = frames[i as usize];
-                    widened[i as usize].b > 0.0 && (m * (x - c)).length_squared() < 1.0
-                })
-                .collect()
+        .par_chunks(1024)
+        .map(|xs| {
+            let (mut counts, mut list) = (Vec::with_capacity(xs.len()), Vec::new());
+            for &x in xs {
+                let before = list.len();
+                list.extend(
+                    index
+                        .blobs_near(x)
+                        .iter()
+                        .copied()
+                        .filter(|&i| inside(x, i)),
+                );
+                counts.push((list.len() - before) as u32);
+            }
+            (counts, list)
         })
         .collect();
-    let mut start = vec![0usize; blobs.len() + 1];
-    for list in &per_point {
-        for &i in list {
-            start[i as usize + 1] += 1;
+    let mut p_start = Vec::with_capacity(pts.x.len() + 1);
+    p_start.push(0usize);
+    let mut p_blobs = Vec::new();
+    for (counts, list) in chunks {
+        for c in counts {
+            p_start.push(p_start[p_start.len() - 1] + c as usize);
+        }
+        p_blobs.extend(list);
+    }
+    transpose(&p_start, &p_blobs, blobs.len())
+}
+
+/// The transpose of a CSR relation (`start`, `entries`) from rows to `n_columns` columns: for
+/// each column, the rows that list it, in increasing order.
+fn transpose(start: &[usize], entries: &[u32], n_columns: usize) -> (Vec<usize>, Vec<u32>) {
+    let mut t_start = vec![0usize; n_columns + 1];
+    for &c in entries {
+        t_start[c as usize + 1] += 1;
+    }
+    for c in 0..n_columns {
+        t_start[c + 1] += t_start[c];
+    }
+    let mut fill = t_start.clone();
+    let mut t_entries = vec![0u32; entries.len()];
+    for row in 0..start.len().saturating_sub(1) {
+        for &c in &entries[start[row]..start[row + 1]] {
+            t_entries[fill[c as usize]] = row as u32;
+            fill[c as usize] += 1;
         }
     }
-    for i in 0..blobs.len() {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut entries = vec![0u32; start[blobs.len()]];
-    for (p, list) in per_point.iter().enumerate() {
-        for &i in list {
-            entries[fill[i as usize]] = p as u32;
-            fill[i as usize] += 1;
-        }
-    }
-    (start, entries)
+    (t_start, t_entries)
 }
 
 /// Greedy colouring of the graph "blobs share a point": blobs of one colour can be updated
@@ -70,22 +92,7 @@ pub(super) fn colour(
     entries: &[u32],
     n_points: usize,
 ) -> Vec<Vec<usize>> {
-    // The transpose of the incidence (point → blobs), as CSR.
-    let mut p_start = vec![0usize; n_points + 1];
-    for &p in entries {
-        p_start[p as usize + 1] += 1;
-    }
-    for p in 0..n_points {
-        p_start[p + 1] += p_start[p];
-    }
-    let mut fill = p_start.clone();
-    let mut p_blobs = vec![0u32; entries.len()];
-    for i in 0..n_blobs {
-        for &p in &entries[start[i]..start[i + 1]] {
-            p_blobs[fill[p as usize]] = i as u32;
-            fill[p as usize] += 1;
-        }
-    }
+    let (p_start, p_blobs) = transpose(start, entries, n_points);
     let mut colour_of = vec![usize::MAX; n_blobs];
     // `taken[c] == i + 1` marks colour `c` as used by a neighbour of blob `i`.
     let mut taken: Vec<usize> = Vec::new();
