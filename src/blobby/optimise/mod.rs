@@ -15,10 +15,12 @@
 //! Parametrisation: the field of a blob depends only on its influence radii `r = s·√(1+A)`:
 //! `f = B²(1 − |diag(1/r)·Rᵀ(x−c)|²)²`, so `A` is kept fixed and `s` is moved with `r`.
 
+mod budget;
 mod params;
 mod points;
 mod sparsity;
 
+pub use budget::add_at_shortfalls;
 pub use points::far_field_points;
 
 use glam::{DQuat, DVec3};
@@ -52,6 +54,11 @@ pub struct FullConfig {
     /// Strength of the prior keeping radii and centres near the decomposition, as a length
     /// in units of `D` (see `Sweep::improve`).
     pub shape_prior: f64,
+    /// Adaptive budget: rounds of adding blobs at the worst shortfalls, up to the blob count
+    /// asked for, each followed by `budget_sweeps` sweeps (0 = keep only the surviving blobs).
+    pub budget_rounds: usize,
+    /// Sweeps after each adaptive-budget round.
+    pub budget_sweeps: usize,
 }
 
 impl Default for FullConfig {
@@ -68,8 +75,14 @@ impl Default for FullConfig {
             // pokes through a horse's leg), so it is off by default; dead blobs are dropped.
             b_floor: 0.0,
             shape_prior: 0.002,
+            budget_rounds: env_or("NEPHELE_BR", 2),
+            budget_sweeps: env_or("NEPHELE_BS", 2),
         }
     }
+}
+
+fn env_or(k: &str, d: usize) -> usize {
+    std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d)
 }
 
 /// What happened during a full optimisation.
@@ -326,10 +339,13 @@ fn reseed_dead(
     moved
 }
 
-/// Optimise every parameter of every blob in place. Deterministic at any thread count.
+/// Optimise every parameter of every blob in place. `anchors[i]` is where blob `i`'s shape
+/// prior holds it (its decomposition ellipsoid; `blobs` itself on a first pass). Deterministic at
+/// any thread count.
 pub fn optimise_full(
     cfg: &FullConfig,
     blobs: &mut [Blob],
+    anchors: &[Blob],
     samples: &SurfaceSamples,
     far: &[(DVec3, bool)],
     diag: f64,
@@ -342,7 +358,7 @@ pub fn optimise_full(
     };
     let scale = diag;
     let mut reseeded = vec![false; blobs.len()];
-    let mut anchors: Vec<Params> = blobs.iter().map(Params::from_blob).collect();
+    let mut anchors: Vec<Params> = anchors.iter().map(Params::from_blob).collect();
     for sweep in 0..cfg.sweeps {
         let field = BlobField::new(blobs, threshold);
         if sweep > 0 && sweep + 1 < cfg.sweeps {
@@ -437,7 +453,8 @@ mod tests {
             max_points: 10_000,
             ..FullConfig::default()
         };
-        let report = optimise_full(&cfg, &mut blobs, &s, &[], 2.0 * 3f64.sqrt(), 1.0);
+        let start = blobs.clone();
+        let report = optimise_full(&cfg, &mut blobs, &start, &s, &[], 2.0 * 3f64.sqrt(), 1.0);
         assert!(report.rms_after < 0.2 * report.rms_before, "{report:?}");
         assert!(report.rms_after < 1e-3, "{report:?}");
     }

@@ -132,8 +132,14 @@ pub(super) fn constraint_points(
 /// Far-field sign constraints: points of a coarse grid over the mesh's bounds (expanded by
 /// 15 % of `D`, `resolution` cells on the longest side) that lie farther than `1.5 %` of `D` from
 /// the surface, with whether they are inside. They stop blobs from growing a spurious surface
-/// away from the mesh, where no offset sample reaches. Inside/outside comes from parry's
-/// pseudo-normal test, so the mesh must be consistently oriented; an unusable mesh gives none.
+/// away from the mesh, where no offset sample reaches.
+///
+/// Inside/outside: a point the grid's border reaches by a flood fill is outside. The fill
+/// crosses a grid edge only when the balls of the two ends' surface distances cover it, so it
+/// never passes through the surface. Parry's pseudo-normal test alone misclassifies whole
+/// regions of some scanned meshes (under the horse's belly, a quarter of `D` from any face); it
+/// only decides the points the fill cannot reach (cavities, narrow gaps). An unusable mesh
+/// gives no points.
 pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVec3, bool)> {
     use parry3d_f64::query::PointQuery;
     use parry3d_f64::shape::{TriMesh, TriMeshFlags};
@@ -154,14 +160,56 @@ pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVe
         (size.y / cell).ceil() as usize + 1,
         (size.z / cell).ceil() as usize + 1,
     ];
-    (0..n[0] * n[1] * n[2])
+    let at = |k: usize| {
+        let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
+        bounds.min + DVec3::new(i as f64, j as f64, l as f64) * cell
+    };
+    let probes: Vec<(f64, bool)> = (0..n[0] * n[1] * n[2])
         .into_par_iter()
-        .filter_map(|k| {
-            let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
-            let x = bounds.min + DVec3::new(i as f64, j as f64, l as f64) * cell;
+        .map(|k| {
+            let x = at(k);
             let proj = tri.project_local_point(x, false);
-            let d = proj.point.distance(x);
-            (d > 0.015 * diag).then_some((x, proj.is_inside))
+            (proj.point.distance(x), proj.is_inside)
         })
+        .collect();
+    let outside = flood_from_border(n, &probes, cell);
+    probes
+        .iter()
+        .enumerate()
+        .filter(|(_, (d, _))| *d > 0.015 * diag)
+        .map(|(k, &(_, inside))| (at(k), inside && !outside[k]))
         .collect()
+}
+
+/// Grid points reachable from the border along edges whose two ends' distance balls cover them.
+fn flood_from_border(n: [usize; 3], probes: &[(f64, bool)], cell: f64) -> Vec<bool> {
+    let index = |i: usize, j: usize, l: usize| i + n[0] * (j + n[1] * l);
+    let mut reached = vec![false; probes.len()];
+    let mut stack: Vec<usize> = Vec::new();
+    for (k, seen) in reached.iter_mut().enumerate() {
+        let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
+        let border = i == 0 || j == 0 || l == 0 || i + 1 == n[0] || j + 1 == n[1] || l + 1 == n[2];
+        if border {
+            *seen = true;
+            stack.push(k);
+        }
+    }
+    while let Some(k) = stack.pop() {
+        let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
+        let neighbours = [
+            (i > 0).then(|| index(i - 1, j, l)),
+            (i + 1 < n[0]).then(|| index(i + 1, j, l)),
+            (j > 0).then(|| index(i, j - 1, l)),
+            (j + 1 < n[1]).then(|| index(i, j + 1, l)),
+            (l > 0).then(|| index(i, j, l - 1)),
+            (l + 1 < n[2]).then(|| index(i, j, l + 1)),
+        ];
+        for m in neighbours.into_iter().flatten() {
+            if !reached[m] && probes[k].0 + probes[m].0 > cell {
+                reached[m] = true;
+                stack.push(m);
+            }
+        }
+    }
+    reached
 }
