@@ -177,7 +177,6 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
                 let n0 = blobs.len() - added;
                 anchors.extend_from_slice(&blobs[n0..]);
                 optimise_full(&refine, &mut blobs, &anchors, &samples, &far, bounds.diagonal(), THRESHOLD);
-                }
                 let live: Vec<bool> = blobs.iter().map(Blob::is_live).collect();
                 let mut keep = live.iter();
                 anchors.retain(|_| *keep.next().unwrap_or(&false));
