@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::model_file::MODEL_VERSION;
-use crate::blobby::optimise::{FullConfig, add_at_shortfalls, far_field_points, optimise_full};
+use crate::blobby::optimise::{Budget, FullConfig, FullProblem, drop_dead, far_field_points};
 use crate::blobby::{Blob, BlobField, BlobModel, SourceInfo, THRESHOLD};
 use crate::decompose::{self, DecomposeConfig, ObstacleShift, Primitive};
 use crate::mesh::LoadedMesh;
@@ -133,55 +133,24 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
         Optimisation::Full(f, full) => {
             let (before, _) = optimise_faithful(f, &mut blobs, points, THRESHOLD);
             let far = far_field_points(mesh, 40);
+            let problem = FullProblem::new(full, &samples, &far, bounds.diagonal(), THRESHOLD);
             let mut anchors = blobs.clone();
-            optimise_full(
-                full,
-                &mut blobs,
-                &anchors,
-                &samples,
-                &far,
-                bounds.diagonal(),
-                THRESHOLD,
-            );
+            problem.optimise(&mut blobs, &anchors, full.sweeps, None);
             // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them,
-            // keeping the selection order of the rest.
+            // keeping the selection order of the rest; their budget is spent where the model
+            // falls shortest.
             let mut used = vec![false; candidates.len()];
             for (b, &i) in blobs.iter().zip(&order) {
                 used[i] = b.is_live();
             }
-            let live: Vec<bool> = blobs.iter().map(Blob::is_live).collect();
-            let mut keep = live.iter();
-            anchors.retain(|_| *keep.next().unwrap_or(&false));
-            blobs.retain(Blob::is_live);
-            // Adaptive budget: spend the freed blobs where the model falls shortest.
+            drop_dead(&mut blobs, &mut anchors);
             let ellipsoids: Vec<_> = candidates.iter().map(|c| c.ellipsoid).collect();
-            let refine = FullConfig {
-                sweeps: full.budget_sweeps,
-                ..full.clone()
+            let budget = Budget {
+                blobs: cfg.blobs,
+                candidates: &ellipsoids,
+                initial_a: cfg.initial_a,
             };
-            for round in 0..full.budget_rounds {
-                let spare = cfg.blobs.saturating_sub(blobs.len());
-                let added = add_at_shortfalls(
-                    &mut blobs,
-                    &ellipsoids,
-                    &mut used,
-                    points,
-                    spare.div_ceil(full.budget_rounds - round),
-                    bounds.diagonal(),
-                    THRESHOLD,
-                    cfg.initial_a,
-                );
-                if added == 0 {
-                    break;
-                }
-                let n0 = blobs.len() - added;
-                anchors.extend_from_slice(&blobs[n0..]);
-                optimise_full(&refine, &mut blobs, &anchors, &samples, &far, bounds.diagonal(), THRESHOLD);
-                let live: Vec<bool> = blobs.iter().map(Blob::is_live).collect();
-                let mut keep = live.iter();
-                anchors.retain(|_| *keep.next().unwrap_or(&false));
-                blobs.retain(Blob::is_live);
-            }
+            budget.spend(&problem, &mut blobs, &mut anchors, &mut used, points);
             let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
             (before, after)
         }

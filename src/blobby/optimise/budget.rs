@@ -9,6 +9,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::FullProblem;
 use super::super::{Blob, BlobField};
 use crate::geometry::Ellipsoid;
 
@@ -83,38 +84,101 @@ pub fn nearest_unused(
     chosen
 }
 
-/// Add up to `count` blobs from the unused `candidates` at the model's worst shortfalls
-/// (starting `A` = `initial_a`). Returns how many were added.
-#[allow(clippy::too_many_arguments)]
-pub fn add_at_shortfalls(
-    blobs: &mut Vec<Blob>,
-    candidates: &[Ellipsoid],
-    used: &mut [bool],
-    points: &[DVec3],
-    count: usize,
-    diag: f64,
-    threshold: f64,
-    initial_a: f64,
-) -> usize {
-    if count == 0 {
-        return 0;
-    }
-    let field = BlobField::new(blobs, threshold);
-    let worst = worst_shortfalls(&field, points, 0.002 * diag, 0.03 * diag, count, diag);
-    let at: Vec<DVec3> = worst.iter().map(|w| w.0).collect();
-    let chosen = nearest_unused(candidates, used, &at, 0.05 * diag);
-    for &(i, k) in &chosen {
-        let mut blob = Blob::from_ellipsoid(&candidates[i], initial_a);
-        // Just enough weight to close the gap at the worst point: the blob adds to a field
-        // that is already nearly at the threshold there, and its full weight would bulge out.
-        let (x, f) = worst[k];
-        let u = blob.ellipsoid().radius_squared(x) / (1.0 + blob.a);
-        if u < 1.0 {
-            blob.b = blob.b.min((-f).sqrt() / (1.0 - u));
+/// Drop the dead blobs (`B = 0`) and their anchors, keeping the order of the rest.
+pub fn drop_dead(blobs: &mut Vec<Blob>, anchors: &mut Vec<Blob>) {
+    let mut live = blobs.iter().map(Blob::is_live).collect::<Vec<_>>().into_iter();
+    anchors.retain(|_| live.next().unwrap_or(false));
+    blobs.retain(Blob::is_live);
+}
+
+/// The adaptive blob budget of a fit.
+pub struct Budget<'a> {
+    /// Blobs the model may have.
+    pub blobs: usize,
+    /// The decomposition's candidate ellipsoids, the pool new blobs come from.
+    pub candidates: &'a [Ellipsoid],
+    /// Starting `A` of a new blob.
+    pub initial_a: f64,
+}
+
+impl Budget<'_> {
+    /// Fill the model up to `self.blobs` in `budget_rounds` rounds: each adds blobs from the
+    /// unused candidates (`used`) at the worst shortfalls of the surface samples `points`, then
+    /// re-fits the new blobs and those overlapping them for `budget_sweeps` sweeps and drops
+    /// any that died. `anchors` follows `blobs`.
+    pub fn spend(
+        &self,
+        problem: &FullProblem,
+        blobs: &mut Vec<Blob>,
+        anchors: &mut Vec<Blob>,
+        used: &mut [bool],
+        points: &[DVec3],
+    ) {
+        let cfg = problem.cfg;
+        for round in 0..cfg.budget_rounds {
+            let spare = self.blobs.saturating_sub(blobs.len());
+            let before = blobs.len();
+            self.add_at_shortfalls(
+                blobs,
+                used,
+                points,
+                spare.div_ceil(cfg.budget_rounds - round),
+                problem,
+            );
+            if blobs.len() == before {
+                break;
+            }
+            anchors.extend_from_slice(&blobs[before..]);
+            let active = overlapping(blobs, before);
+            let t = std::time::Instant::now();
+            eprintln!("DBG round {round} blobs {} new {} active {}", blobs.len(), blobs.len() - before, active.iter().filter(|a| **a).count());
+            problem.optimise(blobs, anchors, cfg.budget_sweeps, Some(&active));
+            eprintln!("DBG  {:.2}s", t.elapsed().as_secs_f64());
+            drop_dead(blobs, anchors);
         }
-        blobs.push(blob);
     }
-    chosen.len()
+
+    /// Add up to `count` blobs from the unused candidates at the model's worst shortfalls.
+    fn add_at_shortfalls(
+        &self,
+        blobs: &mut Vec<Blob>,
+        used: &mut [bool],
+        points: &[DVec3],
+        count: usize,
+        problem: &FullProblem,
+    ) {
+        if count == 0 {
+            return;
+        }
+        let diag = problem.diag;
+        let field = BlobField::new(blobs, problem.threshold);
+        let worst = worst_shortfalls(&field, points, 0.002 * diag, 0.03 * diag, count, diag);
+        let at: Vec<DVec3> = worst.iter().map(|w| w.0).collect();
+        for (i, k) in nearest_unused(self.candidates, used, &at, 0.05 * diag) {
+            let (x, f) = worst[k];
+            blobs.push(closing_blob(&self.candidates[i], self.initial_a, x, f));
+        }
+    }
+}
+
+/// The blob of ellipsoid `e` with just enough weight to bring the field `F(x) = f < 0` to the
+/// threshold at `x` (and at most the weight that makes `e` its own iso-surface): the blob adds
+/// to a field already near the threshold, and its full weight would bulge out.
+fn closing_blob(e: &Ellipsoid, initial_a: f64, x: DVec3, f: f64) -> Blob {
+    let mut blob = Blob::from_ellipsoid(e, initial_a);
+    let u = e.radius_squared(x) / (1.0 + blob.a);
+    if u < 1.0 {
+        blob.b = blob.b.min((-f).sqrt() / (1.0 - u));
+    }
+    blob
+}
+
+/// Blobs from `first_new` on, and every blob whose support box overlaps one of theirs.
+fn overlapping(blobs: &[Blob], first_new: usize) -> Vec<bool> {
+    let boxes: Vec<_> = blobs.iter().map(Blob::support_bounds).collect();
+    (0..blobs.len())
+        .map(|i| i >= first_new || boxes[first_new..].iter().any(|b| b.overlaps(&boxes[i])))
+        .collect()
 }
 
 #[cfg(test)]
@@ -138,7 +202,7 @@ mod tests {
     }
 
     #[test]
-    fn adds_the_candidate_that_reaches_the_gap() {
+    fn closes_the_gap_with_the_candidate_that_reaches_it() {
         // One blob covers the left of two touching spheres; the right one is missing.
         let left = sphere(DVec3::new(-1.0, 0.0, 0.0), 1.0);
         let right = sphere(DVec3::new(1.0, 0.0, 0.0), 1.0);
@@ -151,12 +215,20 @@ mod tests {
                 DVec3::new(c + t.cos(), t.sin(), 0.0)
             })
             .collect();
+        let diag = 7.0;
+        let field = BlobField::new(&blobs, 1.0);
+        let worst = worst_shortfalls(&field, &points, 0.002 * diag, 0.03 * diag, 3, diag);
+        assert_eq!(worst.len(), 3, "the right circle falls short everywhere");
+        assert!(worst.iter().all(|(x, f)| x.x > 0.0 && *f < 0.0));
+        let at: Vec<DVec3> = worst.iter().map(|w| w.0).collect();
         let candidates = [far, right, left];
         let mut used = [false, false, true];
-        let added =
-            add_at_shortfalls(&mut blobs, &candidates, &mut used, &points, 3, 7.0, 1.0, 1.0);
-        assert_eq!(added, 1, "one gap, at least 0.03·D wide, wants one blob");
-        assert_eq!(blobs[1].center, right.center);
+        let chosen = nearest_unused(&candidates, &mut used, &at, 0.05 * diag);
+        assert_eq!(chosen, [(1, 0)], "one candidate reaches the gap; the far one is too far");
         assert_eq!(used, [false, true, true]);
+        let (x, f) = worst[0];
+        blobs.push(closing_blob(&right, 1.0, x, f));
+        let closed = BlobField::new(&blobs, 1.0).value(x);
+        assert!(closed.abs() < 1e-9, "F at the worst point after: {closed}");
     }
 }

@@ -6,11 +6,12 @@
 //! Solver: block-coordinate Levenberg–Marquardt. One blob's 10 parameters against the points
 //! inside its support form a 10×10 normal system; blobs that share no point are updated in
 //! parallel (greedy colouring of the overlap graph, so the result does not depend on the thread
-//! count); `|∇F|` is held fixed within a sweep. Dead blobs (tiny `B`) can be re-seeded where
-//! the residual is largest (`FullConfig::b_floor`, off by default: the pipeline drops them).
+//! count); `|∇F|` is held fixed within a sweep. A sweep may be restricted to some blobs (the
+//! adaptive budget re-fits only around the blobs it adds).
 //!
 //! Files: `points` builds what is fitted, `params` is one blob's parametrisation and Jacobian,
-//! `sparsity` says which points each blob touches and which blobs can move together.
+//! `sparsity` says which points each blob touches and which blobs can move together, `budget`
+//! adds blobs where the model falls short.
 //!
 //! Parametrisation: the field of a blob depends only on its influence radii `r = s·√(1+A)`:
 //! `f = B²(1 − |diag(1/r)·Rᵀ(x−c)|²)²`, so `A` is kept fixed and `s` is moved with `r`.
@@ -20,10 +21,10 @@ mod params;
 mod points;
 mod sparsity;
 
-pub use budget::add_at_shortfalls;
+pub use budget::{Budget, drop_dead};
 pub use points::far_field_points;
 
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{Blob, BlobField};
@@ -49,8 +50,6 @@ pub struct FullConfig {
     pub margin: f64,
     /// Use at most this many surface samples (evenly strided) per point kind.
     pub max_points: usize,
-    /// Blobs whose `B` falls below this are re-seeded (0 = never).
-    pub b_floor: f64,
     /// Strength of the prior keeping radii and centres near the decomposition, as a length
     /// in units of `D` (see `Sweep::improve`).
     pub shape_prior: f64,
@@ -71,9 +70,6 @@ impl Default for FullConfig {
             constraint_weight: 0.5,
             margin: 0.05,
             max_points: 20_000,
-            // Re-seeding as small spheres measured worse on thin shapes (a sphere of 2 % of D
-            // pokes through a horse's leg), so it is off by default; dead blobs are dropped.
-            b_floor: 0.0,
             shape_prior: 0.002,
             budget_rounds: env_or("NEPHELE_BR", 2),
             budget_sweeps: env_or("NEPHELE_BS", 2),
@@ -92,8 +88,6 @@ pub struct FullReport {
     pub rms_before: f64,
     /// The same after.
     pub rms_after: f64,
-    /// Blobs re-seeded because they had died.
-    pub reseeded: usize,
 }
 
 /// Residual of one point given its field value `F`, and its derivative `dr/dF`.
@@ -262,15 +256,19 @@ impl Sweep<'_> {
     }
 }
 
-/// `|∇F|` at every point, floored so a residual never explodes where the field is flat.
-fn gradient_norms(field: &BlobField, pts: &Points, diag: f64) -> Vec<f64> {
+/// The blobs' summed field (before the threshold) and `1/|∇F|` at every point, the gradient
+/// floored so a residual never explodes where the field is flat.
+fn sums_and_inverse_gradients(field: &BlobField, pts: &Points, diag: f64) -> (Vec<f64>, Vec<f64>) {
     // Typical |∇F| on the surface of a blob of radius ~D/20 is ~ 2·B·… ; the floor keeps the
     // geometric residual bounded by about 10 % of D per unit of F.
     let floor = 10.0 / diag;
     pts.x
         .par_iter()
-        .map(|&x| 1.0 / field.value_and_gradient(x).1.length().max(floor))
-        .collect()
+        .map(|&x| {
+            let (f, g) = field.value_and_gradient(x);
+            (f + field.threshold(), 1.0 / g.length().max(floor))
+        })
+        .unzip()
 }
 
 /// RMS of `F/|∇F|` over the surface points, as a fraction of `diag`.
@@ -289,142 +287,131 @@ fn surface_rms(field: &BlobField, pts: &Points, diag: f64) -> f64 {
     (s / n.max(1) as f64).sqrt() / diag
 }
 
-/// Re-seed dead blobs as small spheres just inside the surface where the residual is worst.
-fn reseed_dead(
-    cfg: &FullConfig,
-    blobs: &mut [Blob],
-    pts: &Points,
-    field: &BlobField,
+/// The full optimisation's problem: the constraint points of one mesh, built once and reused by
+/// every pass over the blobs.
+pub struct FullProblem<'a> {
+    cfg: &'a FullConfig,
+    pts: Points,
     diag: f64,
-) -> Vec<usize> {
-    let dead: Vec<usize> = (0..blobs.len())
-        .filter(|&i| blobs[i].b.abs() < cfg.b_floor)
-        .collect();
-    let mut moved = Vec::new();
-    if dead.is_empty() {
-        return moved;
-    }
-    // Worst surface points by |F|/|∇F|, largest first, deterministic tie-break by index.
-    let mut worst: Vec<(f64, usize)> = (0..pts.x.len())
-        .into_par_iter()
-        .filter(|&k| pts.kind[k] == Kind::Surface)
-        .map(|k| {
-            let (f, g) = field.value_and_gradient(pts.x[k]);
-            ((f / g.length().max(10.0 / diag)).abs(), k)
-        })
-        .collect();
-    worst.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-    let radius = 0.02 * diag;
-    let mut placed: Vec<DVec3> = Vec::new();
-    let mut cursor = worst.iter();
-    for &i in &dead {
-        let Some(&(_, k)) =
-            cursor.find(|(_, k)| placed.iter().all(|p| p.distance(pts.x[*k]) > 2.0 * radius))
-        else {
-            break;
-        };
-        let centre = pts.x[k] - pts.n[k] * radius;
-        placed.push(pts.x[k]);
-        let a = blobs[i].a;
-        // Iso-radius `radius`: with A, B = (1+A)/A reproduces the sphere.
-        blobs[i] = Blob {
-            center: centre,
-            rotation: DQuat::IDENTITY,
-            semi_axes: DVec3::splat(radius),
-            a,
-            b: (1.0 + a) / a,
-        };
-        moved.push(i);
-    }
-    moved
+    threshold: f64,
 }
 
-/// Optimise every parameter of every blob in place. `anchors[i]` is where blob `i`'s shape
-/// prior holds it (its decomposition ellipsoid; `blobs` itself on a first pass). Deterministic at
-/// any thread count.
+impl<'a> FullProblem<'a> {
+    /// Surface samples, their offset sign constraints and the far-field points `far` (see
+    /// [`far_field_points`]) of a mesh with bounding-box diagonal `diag`.
+    pub fn new(
+        cfg: &'a FullConfig,
+        samples: &SurfaceSamples,
+        far: &[(DVec3, bool)],
+        diag: f64,
+        threshold: f64,
+    ) -> FullProblem<'a> {
+        FullProblem {
+            cfg,
+            pts: constraint_points(cfg, samples, far, diag),
+            diag,
+            threshold,
+        }
+    }
+
+    /// Run `sweeps` sweeps over the blobs flagged in `active` (every blob when `None`), in
+    /// place. `anchors[i]` is where blob `i`'s shape prior holds it (its decomposition
+    /// ellipsoid). Deterministic at any thread count.
+    pub fn optimise(
+        &self,
+        blobs: &mut [Blob],
+        anchors: &[Blob],
+        sweeps: usize,
+        active: Option<&[bool]>,
+    ) {
+        let (cfg, threshold, diag) = (self.cfg, self.threshold, self.diag);
+        // Only the points some active blob reaches take part.
+        let pts = match active {
+            None => None,
+            Some(mask) => Some(self.pts.within(&supports_of(blobs, mask))),
+        };
+        let pts = pts.as_ref().unwrap_or(&self.pts);
+        let anchors: Vec<Params> = anchors.iter().map(Params::from_blob).collect();
+        for _ in 0..sweeps {
+            let field = BlobField::new(blobs, threshold);
+            let (mut sums, inv_g) = sums_and_inverse_gradients(&field, pts, diag);
+            let (start, entries) = incidence(blobs, active, pts);
+            let groups = colour(blobs, &start);
+            for group in groups {
+                let updated: Vec<(usize, Params)> = {
+                    let sweep_state = Sweep {
+                        cfg,
+                        pts,
+                        sums: &sums,
+                        inv_g: &inv_g,
+                        threshold,
+                        scale: diag,
+                    };
+                    group
+                        .par_iter()
+                        .filter(|&&i| blobs[i].is_live() && start[i + 1] > start[i])
+                        .map(|&i| {
+                            (
+                                i,
+                                sweep_state.improve(
+                                    Params::from_blob(&blobs[i]),
+                                    &anchors[i],
+                                    &entries[start[i]..start[i + 1]],
+                                ),
+                            )
+                        })
+                        .collect()
+                };
+                for (i, p) in updated {
+                    let old = Eval::new(&Params::from_blob(&blobs[i]));
+                    let new = Eval::new(&p);
+                    for &k in &entries[start[i]..start[i + 1]] {
+                        let x = pts.x[k as usize];
+                        sums[k as usize] += new.value(x) - old.value(x);
+                    }
+                    blobs[i] = p.to_blob(blobs[i].a);
+                }
+            }
+        }
+    }
+}
+
+/// The live blobs flagged in `mask` (the others switched off), for support queries.
+fn supports_of(blobs: &[Blob], mask: &[bool]) -> Vec<Blob> {
+    blobs
+        .iter()
+        .zip(mask)
+        .map(|(b, &on)| Blob {
+            b: if on { b.b } else { 0.0 },
+            ..*b
+        })
+        .collect()
+}
+
+/// Optimise every parameter of every blob in place for `cfg.sweeps` sweeps, the prior holding
+/// each blob near where it starts. Deterministic at any thread count.
 pub fn optimise_full(
     cfg: &FullConfig,
     blobs: &mut [Blob],
-    anchors: &[Blob],
     samples: &SurfaceSamples,
     far: &[(DVec3, bool)],
     diag: f64,
     threshold: f64,
 ) -> FullReport {
-    let pts = constraint_points(cfg, samples, far, diag);
-    let mut report = FullReport {
-        rms_before: surface_rms(&BlobField::new(blobs, threshold), &pts, diag),
-        ..FullReport::default()
-    };
-    let scale = diag;
-    let mut reseeded = vec![false; blobs.len()];
-    let mut anchors: Vec<Params> = anchors.iter().map(Params::from_blob).collect();
-    for sweep in 0..cfg.sweeps {
-        let field = BlobField::new(blobs, threshold);
-        if sweep > 0 && sweep + 1 < cfg.sweeps {
-            for i in reseed_dead(cfg, blobs, &pts, &field, diag) {
-                reseeded[i] = true;
-                anchors[i] = Params::from_blob(&blobs[i]);
-                report.reseeded += 1;
-            }
-        }
-        let field = BlobField::new(blobs, threshold);
-        let inv_g = gradient_norms(&field, &pts, diag);
-        let (start, entries) = incidence(blobs, &pts);
-        let mut sums: Vec<f64> = pts.x.par_iter().map(|&x| field.sum(x)).collect();
-        let groups = colour(blobs.len(), &start, &entries, pts.x.len());
-        for group in groups {
-            let updated: Vec<(usize, Params)> = {
-                let sweep_state = Sweep {
-                    cfg,
-                    pts: &pts,
-                    sums: &sums,
-                    inv_g: &inv_g,
-                    threshold,
-                    scale,
-                };
-                group
-                    .par_iter()
-                    .filter(|&&i| blobs[i].is_live() && start[i + 1] > start[i])
-                    .map(|&i| {
-                        (
-                            i,
-                            sweep_state.improve(
-                                Params::from_blob(&blobs[i]),
-                                &anchors[i],
-                                &entries[start[i]..start[i + 1]],
-                            ),
-                        )
-                    })
-                    .collect()
-            };
-            for (i, p) in updated {
-                let old = Eval::new(&Params::from_blob(&blobs[i]));
-                let new = Eval::new(&p);
-                for &k in &entries[start[i]..start[i + 1]] {
-                    let x = pts.x[k as usize];
-                    sums[k as usize] += new.value(x) - old.value(x);
-                }
-                blobs[i] = p.to_blob(blobs[i].a);
-            }
-        }
+    let anchors = blobs.to_vec();
+    let problem = FullProblem::new(cfg, samples, far, diag, threshold);
+    let rms_before = surface_rms(&BlobField::new(blobs, threshold), &problem.pts, diag);
+    problem.optimise(blobs, &anchors, cfg.sweeps, None);
+    FullReport {
+        rms_before,
+        rms_after: surface_rms(&BlobField::new(blobs, threshold), &problem.pts, diag),
     }
-    report.rms_after = surface_rms(&BlobField::new(blobs, threshold), &pts, diag);
-    // Keep the selection order meaningful (the diffusion animation starts from the first blob):
-    // blobs that kept their decomposition origin first, in order; re-seeded ones after them.
-    let original = blobs.to_vec();
-    let order = (0..blobs.len())
-        .filter(|&i| !reseeded[i])
-        .chain((0..blobs.len()).filter(|&i| reseeded[i]));
-    for (k, i) in order.enumerate() {
-        blobs[k] = original[i];
-    }
-    report
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DQuat;
 
     #[test]
     fn fits_a_sphere_from_a_poor_start() {
@@ -453,8 +440,7 @@ mod tests {
             max_points: 10_000,
             ..FullConfig::default()
         };
-        let start = blobs.clone();
-        let report = optimise_full(&cfg, &mut blobs, &start, &s, &[], 2.0 * 3f64.sqrt(), 1.0);
+        let report = optimise_full(&cfg, &mut blobs, &s, &[], 2.0 * 3f64.sqrt(), 1.0);
         assert!(report.rms_after < 0.2 * report.rms_before, "{report:?}");
         assert!(report.rms_after < 1e-3, "{report:?}");
     }
