@@ -9,8 +9,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::FullProblem;
 use super::super::{Blob, BlobField};
+use super::FullProblem;
 use crate::geometry::Ellipsoid;
 
 /// Distance from `x` to the ellipsoid's surface along the ray from its centre (exact for a
@@ -86,7 +86,11 @@ pub fn nearest_unused(
 
 /// Drop the dead blobs (`B = 0`) and their anchors, keeping the order of the rest.
 pub fn drop_dead(blobs: &mut Vec<Blob>, anchors: &mut Vec<Blob>) {
-    let mut live = blobs.iter().map(Blob::is_live).collect::<Vec<_>>().into_iter();
+    let mut live = blobs
+        .iter()
+        .map(Blob::is_live)
+        .collect::<Vec<_>>()
+        .into_iter();
     anchors.retain(|_| live.next().unwrap_or(false));
     blobs.retain(Blob::is_live);
 }
@@ -130,10 +134,7 @@ impl Budget<'_> {
             }
             anchors.extend_from_slice(&blobs[before..]);
             let active = overlapping(blobs, before);
-            let t = std::time::Instant::now();
-            eprintln!("DBG round {round} blobs {} new {} active {}", blobs.len(), blobs.len() - before, active.iter().filter(|a| **a).count());
             problem.optimise(blobs, anchors, cfg.budget_sweeps, Some(&active));
-            eprintln!("DBG  {:.2}s", t.elapsed().as_secs_f64());
             drop_dead(blobs, anchors);
         }
     }
@@ -224,7 +225,11 @@ mod tests {
         let candidates = [far, right, left];
         let mut used = [false, false, true];
         let chosen = nearest_unused(&candidates, &mut used, &at, 0.05 * diag);
-        assert_eq!(chosen, [(1, 0)], "one candidate reaches the gap; the far one is too far");
+        assert_eq!(
+            chosen,
+            [(1, 0)],
+            "one candidate reaches the gap; the far one is too far"
+        );
         assert_eq!(used, [false, true, true]);
         let (x, f) = worst[0];
         blobs.push(closing_blob(&right, 1.0, x, f));

@@ -63,22 +63,18 @@ pub struct FullConfig {
 impl Default for FullConfig {
     fn default() -> Self {
         FullConfig {
-            sweeps: 4,
+            sweeps: 3,
             iterations: 2,
             inside_offsets: vec![0.005, 0.02],
             outside_offsets: vec![0.005, 0.03, 0.1],
             constraint_weight: 0.5,
             margin: 0.05,
-            max_points: 20_000,
+            max_points: 12_000,
             shape_prior: 0.002,
-            budget_rounds: env_or("NEPHELE_BR", 2),
-            budget_sweeps: env_or("NEPHELE_BS", 2),
+            budget_rounds: 3,
+            budget_sweeps: 3,
         }
     }
-}
-
-fn env_or(k: &str, d: usize) -> usize {
-    std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d)
 }
 
 /// What happened during a full optimisation.
@@ -146,6 +142,19 @@ fn solve_damped(h: &[[f64; 10]; 10], g: &[f64; 10], lambda: f64) -> Option<[f64;
     Some(x)
 }
 
+/// Points per chunk of a blob's sums. The chunks of one blob run in parallel (a big blob alone
+/// in its colour still uses every core) and their partial sums are added in order, so results do
+/// not depend on the thread count.
+const CHUNK: usize = 1024;
+
+/// `part` of each chunk of `0..n`, in order.
+fn chunked<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
+    (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| part(c * CHUNK..((c + 1) * CHUNK).min(n)))
+        .collect()
+}
+
 /// Shared, read-only state of one sweep.
 struct Sweep<'a> {
     cfg: &'a FullConfig,
@@ -172,44 +181,56 @@ impl Sweep<'_> {
         };
         // F without this blob, per incident point.
         let rest: Vec<f64> = idx
-            .iter()
-            .map(|&k| self.sums[k as usize] - e0.value(self.pts.x[k as usize]) - self.threshold)
+            .par_iter()
+            .map(|&k| {
+                let k = k as usize;
+                self.sums[k] - self.threshold - e0.value(self.pts.x[k])
+            })
             .collect();
         let cost = |p: &Params| -> f64 {
             let e = Eval::new(p);
-            idx.iter()
-                .zip(&rest)
-                .map(|(&k, &r)| {
+            let parts = chunked(idx.len(), |range| {
+                let mut sum = 0.0;
+                for (&k, &r) in idx[range.clone()].iter().zip(&rest[range]) {
                     let k = k as usize;
-                    let (res, _) = residual(
-                        self.pts.kind[k],
-                        r + e.value(self.pts.x[k]),
-                        self.inv_g[k],
-                        self.cfg,
-                    );
-                    res * res
-                })
-                .sum::<f64>()
-                + prior(p).iter().map(|v| v * v).sum::<f64>()
+                    let big_f = r + e.value(self.pts.x[k]);
+                    let (res, _) = residual(self.pts.kind[k], big_f, self.inv_g[k], self.cfg);
+                    sum += res * res;
+                }
+                sum
+            });
+            parts.iter().sum::<f64>() + prior(p).iter().map(|v| v * v).sum::<f64>()
         };
         let mut p = p0;
         let mut c = cost(&p);
         let mut lambda = 1e-3;
         for _ in 0..self.cfg.iterations {
             let e = Eval::new(&p);
-            let (mut h, mut g) = ([[0.0; 10]; 10], [0.0; 10]);
-            for (&k, &r) in idx.iter().zip(&rest) {
-                let k = k as usize;
-                let (f, jf) = e.value_and_jacobian(self.pts.x[k], self.scale);
-                let (res, dres) = residual(self.pts.kind[k], r + f, self.inv_g[k], self.cfg);
-                if dres == 0.0 {
-                    continue;
+            let parts = chunked(idx.len(), |range| {
+                let (mut h, mut g) = ([[0.0; 10]; 10], [0.0; 10]);
+                for (&k, &r) in idx[range.clone()].iter().zip(&rest[range]) {
+                    let k = k as usize;
+                    let (f, jf) = e.value_and_jacobian(self.pts.x[k], self.scale);
+                    let (res, dres) = residual(self.pts.kind[k], r + f, self.inv_g[k], self.cfg);
+                    if dres == 0.0 {
+                        continue;
+                    }
+                    let j: [f64; 10] = std::array::from_fn(|a| jf[a] * dres);
+                    for a in 0..10 {
+                        g[a] += j[a] * res;
+                        for b in 0..=a {
+                            h[a][b] += j[a] * j[b];
+                        }
+                    }
                 }
-                let j: [f64; 10] = std::array::from_fn(|a| jf[a] * dres);
+                (h, g)
+            });
+            let (mut h, mut g) = ([[0.0; 10]; 10], [0.0; 10]);
+            for (ph, pg) in &parts {
                 for a in 0..10 {
-                    g[a] += j[a] * res;
+                    g[a] += pg[a];
                     for b in 0..=a {
-                        h[a][b] += j[a] * j[b];
+                        h[a][b] += ph[a][b];
                     }
                 }
             }
@@ -326,10 +347,7 @@ impl<'a> FullProblem<'a> {
     ) {
         let (cfg, threshold, diag) = (self.cfg, self.threshold, self.diag);
         // Only the points some active blob reaches take part.
-        let pts = match active {
-            None => None,
-            Some(mask) => Some(self.pts.within(&supports_of(blobs, mask))),
-        };
+        let pts = active.map(|mask| self.pts.within(&supports_of(blobs, mask)));
         let pts = pts.as_ref().unwrap_or(&self.pts);
         let anchors: Vec<Params> = anchors.iter().map(Params::from_blob).collect();
         for _ in 0..sweeps {

@@ -145,7 +145,11 @@ pub(super) fn colour(blobs: &[Blob], start: &[usize]) -> Vec<Vec<usize>> {
         }
         colour_of[i] = (0..).find(|&c| taken.get(c) != Some(&(i + 1))).unwrap_or(0);
     }
-    let n_colours = touching.iter().map(|&i| colour_of[i] + 1).max().unwrap_or(0);
+    let n_colours = touching
+        .iter()
+        .map(|&i| colour_of[i] + 1)
+        .max()
+        .unwrap_or(0);
     let mut groups = vec![Vec::new(); n_colours];
     for &i in &touching {
         groups[colour_of[i]].push(i);
