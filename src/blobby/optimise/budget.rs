@@ -9,8 +9,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::super::{Blob, BlobField};
 use super::FullProblem;
+use crate::blobby::{Blob, BlobField};
 use crate::geometry::Ellipsoid;
 
 /// Distance from `x` to the ellipsoid's surface along the ray from its centre (exact for a
@@ -153,7 +153,8 @@ impl Budget<'_> {
         }
         let diag = problem.diag;
         let field = BlobField::new(blobs, problem.threshold);
-        let worst = worst_shortfalls(&field, points, 0.002 * diag, 0.03 * diag, count, diag);
+        let depth = problem.cfg.budget_shortfall * diag;
+        let worst = worst_shortfalls(&field, points, depth, 0.03 * diag, count, diag);
         let at: Vec<DVec3> = worst.iter().map(|w| w.0).collect();
         for (i, k) in nearest_unused(self.candidates, used, &at, 0.05 * diag) {
             let (x, f) = worst[k];

@@ -58,6 +58,10 @@ pub struct FullConfig {
     pub budget_rounds: usize,
     /// Sweeps after each adaptive-budget round.
     pub budget_sweeps: usize,
+    /// The adaptive budget adds blobs only where the model falls shorter than this. Shallower
+    /// gaps are the optimiser's job: blobs added there measured worse (they bulge out
+    /// elsewhere), so a model may end with fewer blobs than asked.
+    pub budget_shortfall: f64,
 }
 
 impl Default for FullConfig {
@@ -73,6 +77,7 @@ impl Default for FullConfig {
             shape_prior: 0.002,
             budget_rounds: 3,
             budget_sweeps: 3,
+            budget_shortfall: 0.006,
         }
     }
 }
