@@ -77,7 +77,7 @@ impl Default for FullConfig {
             shape_prior: 0.002,
             budget_rounds: 3,
             budget_sweeps: 3,
-            budget_shortfall: 0.006,
+            budget_shortfall: 0.004,
         }
     }
 }
