@@ -4,9 +4,9 @@
 //! surface appears away from the mesh.
 //!
 //! Solver: block-coordinate Levenberg–Marquardt. One blob's 10 parameters against the points
-//! inside its support form a 10×10 normal system; blobs that share no point are updated in
-//! parallel (greedy colouring of the overlap graph, so the result does not depend on the thread
-//! count); `|∇F|` is held fixed within a sweep. A sweep may be restricted to some blobs (the
+//! inside its support form a 10×10 normal system; blobs whose support boxes do not overlap are
+//! updated in parallel (greedy colouring, so the result does not depend on the thread count);
+//! `|∇F|` is held fixed within a sweep. A sweep may be restricted to some blobs (the
 //! adaptive budget re-fits only around the blobs it adds).
 //!
 //! Files: `points` builds what is fitted, `params` is one blob's parametrisation and Jacobian,
