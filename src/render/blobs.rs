@@ -345,10 +345,19 @@ impl BlobMedium {
                 if n < MAX_ACTIVE {
                     act[n] = (f, k as u32);
                     n += 1;
+                } else {
+                    // Full: keep the strongest, so the dominant blob is always among them
+                    // (the weights below would otherwise all vanish and give 0/0).
+                    let weakest = (0..MAX_ACTIVE)
+                        .min_by(|&i, &j| act[i].0.total_cmp(&act[j].0))
+                        .unwrap_or(0);
+                    if f > act[weakest].0 {
+                        act[weakest] = (f, k as u32);
+                    }
                 }
             }
         }
-        if g <= 0.0 {
+        if g <= 0.0 || !g.is_finite() {
             return 0.0;
         }
         let p = &self.params;
@@ -501,6 +510,56 @@ mod tests {
             (gain(0.05, 9.48) - 8.75).abs() < 0.05,
             "{}",
             gain(0.05, 9.48)
+        );
+    }
+
+    #[test]
+    fn density_is_finite_under_more_overlapping_blobs_than_the_active_list_holds() {
+        use glam::{DQuat, DVec3};
+        // 30 weak, wide blobs whose supports the ray enters first, then one strong blob: the
+        // strong one must make the active list (it used to be left out, giving 0/0 = NaN).
+        let sphere = |z: f64, r: f64, b: f64| Blob {
+            center: DVec3::new(0.0, 0.0, z),
+            rotation: DQuat::IDENTITY,
+            semi_axes: DVec3::splat(r),
+            a: 1.0,
+            b,
+        };
+        let mut blobs: Vec<Blob> = (0..30)
+            .map(|i| sphere(0.01 * i as f64, 1.0, 0.05))
+            .collect();
+        blobs.push(sphere(0.0, 0.3, 4.0));
+        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
+        let settings = RenderSettings {
+            width: 8,
+            height: 8,
+            camera: Camera {
+                position: glam::Vec3::new(0.0, 0.0, -5.0),
+                look_at: glam::Vec3::ZERO,
+                up: glam::Vec3::Y,
+                fov_deg: 40.0,
+            },
+            sun: Sun::default(),
+            sky: Sky::default(),
+            cloud: CloudMaterial::default(),
+            exposure: 0.0,
+            length_scale: 2.0,
+            seed: 1,
+            quality: Quality::final_frame(),
+        };
+        let m = BlobMedium::without_light(&settings, &blobs);
+        let ray = Ray {
+            origin: Vec3A::new(0.0, 0.0, -5.0),
+            dir: Vec3A::Z,
+        };
+        let (mut hits, mut ivs) = (Vec::new(), Vec::new());
+        let all: Vec<u32> = (0..m.len() as u32).collect();
+        m.gather(&all, &ray, &mut hits, &mut ivs);
+        assert!(hits.len() > MAX_ACTIVE);
+        let sigma = m.density(&hits, 5.0);
+        assert!(
+            sigma.is_finite() && sigma > 0.5 * m.params.sigma,
+            "σ_t = {sigma}"
         );
     }
 
