@@ -5,7 +5,9 @@ use glam::DVec3;
 
 use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::model_file::MODEL_VERSION;
-use crate::blobby::optimise::{Budget, FullConfig, FullProblem, drop_dead, far_field_points};
+use crate::blobby::optimise::{
+    Budget, FullConfig, FullProblem, drop_dead, drop_negligible, far_field_points,
+};
 use crate::blobby::{Blob, BlobField, BlobModel, SourceInfo, THRESHOLD};
 use crate::decompose::{self, DecomposeConfig, ObstacleShift, Primitive};
 use crate::mesh::LoadedMesh;
@@ -138,7 +140,7 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
             problem.optimise(&mut blobs, &anchors, full.sweeps, None);
             // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them,
             // keeping the selection order of the rest; their budget is spent where the model
-            // falls shortest.
+            // falls shortest. Blobs left negligible at the end go too (bytes and render time).
             let mut used = vec![false; candidates.len()];
             for (b, &i) in blobs.iter().zip(&order) {
                 used[i] = b.is_live();
@@ -151,6 +153,7 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
                 initial_a: cfg.initial_a,
             };
             budget.spend(&problem, &mut blobs, &mut anchors, &mut used, points);
+            drop_negligible(&mut blobs, THRESHOLD);
             let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
             (before, after)
         }

@@ -21,7 +21,7 @@ mod params;
 mod points;
 mod sparsity;
 
-pub use budget::{Budget, drop_dead};
+pub use budget::{Budget, NEGLIGIBLE, drop_dead, drop_negligible};
 pub use points::far_field_points;
 
 use glam::DVec3;
