@@ -8,7 +8,7 @@
 //! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA and
 //! builds the per-frame light grid ([`light_grid`]: optical depth toward the sun and upward);
 //! [`integrate`] marches every pixel through the blob supports only (tile frustum culling, then
-//! per-ray ellipsoid intervals), evaluating the noisy density ([`blobs`], [`noise`]) and the
+//! per-ray ellipsoid intervals), evaluating the noisy density ([`density`], [`noise`]) and the
 //! lighting ([`shading`]).
 //!
 //! References:
@@ -23,6 +23,7 @@
 
 pub mod blobs;
 pub mod camera;
+mod density;
 pub mod integrate;
 pub mod light_grid;
 pub mod medium;
