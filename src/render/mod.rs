@@ -23,7 +23,7 @@
 
 pub mod blobs;
 pub mod camera;
-mod density;
+pub mod density;
 pub mod integrate;
 pub mod light_grid;
 pub mod medium;
