@@ -1,6 +1,8 @@
 //! Ellipsoid decomposition end to end on generated meshes (spheres, ellipsoids, two separated
 //! ellipsoids), plus the bunny through the fit pipeline when `../shared/models` is present.
 
+mod shared_models;
+
 use glam::{DQuat, DVec3};
 use nephele::decompose::{self, Candidate, DecomposeConfig, ObstacleShift, Primitive};
 use nephele::geometry::Aabb;
@@ -276,12 +278,9 @@ fn empty_bounds_and_no_candidates_select_nothing() {
 
 #[test]
 fn bunny_fit_selects_300_with_large_spheres() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/models/bunny.off");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} not found");
+    let Some(loaded) = shared_models::load("bunny.off") else {
         return;
-    }
-    let loaded = nephele::mesh::load(path).unwrap();
+    };
     let cfg = nephele::pipeline::FitConfig {
         optimisation: nephele::pipeline::Optimisation::Faithful(Default::default()),
         ..Default::default()

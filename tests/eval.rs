@@ -6,6 +6,7 @@ use nephele::eval::{MetroConfig, compare, metro::area_samples};
 use nephele::mesh::Mesh;
 
 mod eval_support;
+mod shared_models;
 use eval_support::icosphere;
 
 fn scaled(m: &Mesh, k: f64, about: DVec3) -> Mesh {
@@ -130,14 +131,8 @@ fn empty_mesh_gives_infinite_distances_without_panicking() {
 
 #[test]
 fn bunny_against_itself_and_a_scaled_copy() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/models/bunny.off");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} is absent");
+    let Some(loaded) = shared_models::load("bunny.off") else {
         return;
-    }
-    let loaded = match nephele::mesh::load(path) {
-        Ok(l) => l,
-        Err(e) => panic!("{e}"),
     };
     let m = loaded.mesh;
     let d = m.bounds().diagonal();

@@ -3,6 +3,8 @@
 //! thread count, the adaptive budget lowers the worst error; and the full optimiser's bars on
 //! the bunny when `../shared/models` is present.
 
+mod shared_models;
+
 use nephele::blobby::fit::FaithfulConfig;
 use nephele::pipeline::{FitConfig, Optimisation, fit};
 
@@ -171,12 +173,9 @@ fn adaptive_budget_spends_the_freed_blobs_where_the_model_falls_short() {
 #[test]
 fn bunny_full_fit_halves_the_faithful_error_and_beats_a_simplified_mesh() {
     use nephele::eval::metro::{MetroConfig, compare};
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/models/bunny.off");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} not found (the shared test models are absent)");
+    let Some(bunny) = shared_models::load("bunny.off") else {
         return;
-    }
-    let bunny = nephele::mesh::load(path).unwrap();
+    };
     let out = fit(&FitConfig::default(), &bunny);
     let surface = nephele::blobby::polygonize::polygonize(&out.model.field(), 200);
     let r = compare(&bunny.mesh, &surface, &MetroConfig::default());
