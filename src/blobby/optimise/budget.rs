@@ -9,7 +9,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::FullProblem;
+use super::{FullProblem, inverse_gradient};
 use crate::blobby::{Blob, BlobField};
 use crate::geometry::Ellipsoid;
 
@@ -35,13 +35,12 @@ pub fn worst_shortfalls(
     count: usize,
     diag: f64,
 ) -> Vec<(DVec3, f64)> {
-    let floor = 10.0 / diag;
     let mut short: Vec<(f64, usize, f64)> = points
         .par_iter()
         .enumerate()
         .filter_map(|(k, &x)| {
             let (f, g) = field.value_and_gradient(x);
-            let d = f / g.length().max(floor);
+            let d = f * inverse_gradient(g, diag);
             (d < -tolerance).then_some((d, k, f))
         })
         .collect();

@@ -282,17 +282,21 @@ impl Sweep<'_> {
     }
 }
 
-/// The blobs' summed field (before the threshold) and `1/|∇F|` at every point, the gradient
-/// floored so a residual never explodes where the field is flat.
+/// `1/|∇F|` for the geometric residual `F/|∇F|`, the gradient floored so the residual never
+/// explodes where the field is flat: typical `|∇F|` on the surface of a blob of radius ~D/20 is
+/// ~2·B·…; the floor bounds the residual by about 10 % of D per unit of `F`.
+#[inline]
+fn inverse_gradient(g: DVec3, diag: f64) -> f64 {
+    1.0 / g.length().max(10.0 / diag)
+}
+
+/// The blobs' summed field (before the threshold) and [`inverse_gradient`] at every point.
 fn sums_and_inverse_gradients(field: &BlobField, pts: &Points, diag: f64) -> (Vec<f64>, Vec<f64>) {
-    // Typical |∇F| on the surface of a blob of radius ~D/20 is ~ 2·B·… ; the floor keeps the
-    // geometric residual bounded by about 10 % of D per unit of F.
-    let floor = 10.0 / diag;
     pts.x
         .par_iter()
         .map(|&x| {
             let (f, g) = field.value_and_gradient(x);
-            (f + field.threshold(), 1.0 / g.length().max(floor))
+            (f + field.threshold(), inverse_gradient(g, diag))
         })
         .unzip()
 }
@@ -306,7 +310,7 @@ fn surface_rms(field: &BlobField, pts: &Points, diag: f64) -> f64 {
         .filter(|(_, k)| **k == Kind::Surface)
         .map(|(&x, _)| {
             let (f, g) = field.value_and_gradient(x);
-            let d = f / g.length().max(10.0 / diag);
+            let d = f * inverse_gradient(g, diag);
             (d * d, 1usize)
         })
         .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
