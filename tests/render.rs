@@ -78,6 +78,7 @@ fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
         exposure: 0.0,
         length_scale: 3.5,
         seed: 7,
+        time: 0.0,
         quality,
     }
 }
@@ -103,7 +104,7 @@ fn uniform_ball_coverage_matches_beer_lambert() {
         sun_dir: Vec3A::NEG_Y,
         step: 0.05,
     };
-    let frame = render_medium_unshaded(&s, &medium, 0);
+    let frame = render_medium_unshaded(&s, &medium);
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
     let mut checked = 0;
     for (x, y) in [(32, 18), (28, 14), (40, 20), (33, 9), (24, 25), (1, 1)] {
@@ -148,7 +149,7 @@ fn single_blob_sphere_coverage_is_close_to_analytic() {
         a: 1.0,
         b: 2.0,
     };
-    let frame = render_frame(&s, &[blob], 0);
+    let frame = render_frame(&s, &[blob]);
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
     for (x, y) in [(32, 18), (30, 16), (35, 21)] {
         let ray = cam.pixel_ray(x, y);
@@ -186,6 +187,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
         direction: Vec3::Z,
         color: Vec3::new(1.0, 0.9, 0.8),
         intensity: 5.0,
+        ..Sun::default()
     };
     s.sky = Sky::Gradient {
         zenith: Vec3::ZERO,
@@ -204,7 +206,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
         sun_dir: Vec3A::Z,
         step: d / 16.0,
     };
-    let frame = render_medium(&s, &medium, 3);
+    let frame = render_medium(&s, &medium);
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 9, 9);
     for (x, y) in [(4, 4), (0, 0), (8, 3), (2, 7)] {
         let dir = cam.pixel_ray(x, y).dir;
@@ -246,7 +248,7 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| render_frame(&s, &blobs, 5))
+            .install(|| render_frame(&s, &blobs))
     };
     let (one, two) = (render(1), render(2));
     assert_eq!(frame_hash(&one), frame_hash(&two), "1 vs 2 threads");
@@ -256,7 +258,7 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
         "the cloud must cover part of the frame ({covered})"
     );
     // Another frame index changes the jitter, hence the bits.
-    assert_ne!(frame_hash(&one), frame_hash(&render_frame(&s, &blobs, 6)));
+    assert_ne!(frame_hash(&one), frame_hash(&render_frame(&s, &blobs)));
     assert_eq!(
         frame_hash(&one),
         PINNED,
@@ -272,7 +274,7 @@ const PINNED: u64 = 0x7d3e_3020_0fa7_8c39;
 fn exr_reads_back_with_channels_and_values() {
     let blobs = test_cloud(30, 1);
     let s = settings(40, 24, Quality::preview());
-    let frame = render_frame(&s, &blobs, 0);
+    let frame = render_frame(&s, &blobs);
     let dir = std::env::temp_dir().join(format!("nephele-render-exr-{}", std::process::id()));
     let path = dir.join("f.exr");
     output::write_exr(&path, &frame).unwrap();
@@ -341,7 +343,7 @@ fn bench_frame_times() {
     ] {
         let total = median(
             (0..runs)
-                .map(|i| time(|| render_frame(&s, &blobs, i)).1)
+                .map(|_| time(|| render_frame(&s, &blobs)).1)
                 .collect(),
         );
         let prep = median(
@@ -357,12 +359,12 @@ fn bench_frame_times() {
         let m = BlobMedium::new(&s, &blobs);
         let march = median(
             (0..runs)
-                .map(|i| time(|| render_medium(&s, &m, i)).1)
+                .map(|_| time(|| render_medium(&s, &m)).1)
                 .collect(),
         );
         let dens = median(
             (0..runs)
-                .map(|i| time(|| render_medium_unshaded(&s, &m, i)).1)
+                .map(|_| time(|| render_medium_unshaded(&s, &m)).1)
                 .collect(),
         );
         println!(
@@ -381,7 +383,7 @@ fn look() {
     let mut s = settings(640, 360, Quality::final_frame());
     // Sun from the upper left, a little in front of the cloud.
     s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
-    let f = render_frame(&s, &blobs, 0);
+    let f = render_frame(&s, &blobs);
     output::write_png(&dir.join("front.png"), &f, &s).unwrap();
     let mut lum: Vec<f32> = (0..f.alpha.len())
         .filter(|&i| f.alpha[i] > 0.99)
@@ -398,11 +400,11 @@ fn look() {
     // Looking toward the sun: silver lining.
     let mut back = s.clone();
     back.camera.position = Vec3::new(-2.2, 1.4, -3.4);
-    let f = render_frame(&back, &blobs, 0);
+    let f = render_frame(&back, &blobs);
     output::write_png(&dir.join("against_sun.png"), &f, &back).unwrap();
     let mut p = settings(256, 256, Quality::preview());
     p.sun = s.sun;
-    let f = render_frame(&p, &blobs, 0);
+    let f = render_frame(&p, &blobs);
     output::write_png(&dir.join("preview.png"), &f, &p).unwrap();
 }
 
@@ -442,11 +444,11 @@ fn look_duck() {
     s.camera.position = Vec3::new(2.2, 1.2, 3.6);
     s.camera.look_at = Vec3::new(0.0, 0.0, 0.0);
     s.sun.direction = Vec3::new(0.8, -0.6, -0.2);
-    let (f, secs) = time(|| render_frame(&s, &model.blobs, 0));
+    let (f, secs) = time(|| render_frame(&s, &model.blobs));
     println!("duck final {secs:.3} s, {}", lum_stats(&f));
     output::write_png(&dir.join("duck.png"), &f, &s).unwrap();
     s.camera.position = Vec3::new(2.5, 0.6, -3.4);
-    let f = render_frame(&s, &model.blobs, 0);
+    let f = render_frame(&s, &model.blobs);
     output::write_png(&dir.join("duck_back.png"), &f, &s).unwrap();
 }
 
@@ -474,7 +476,7 @@ fn look_debug() {
         zenith: Vec3::ZERO,
         horizon: Vec3::ZERO,
     };
-    let f = render_frame(&p, &[blob], 0);
+    let f = render_frame(&p, &[blob]);
     println!("sphere {}", lum_stats(&f));
     output::write_png(&dir.join("sphere.png"), &f, &p).unwrap();
     let blobs = test_cloud(400, 11);
@@ -482,7 +484,7 @@ fn look_debug() {
     s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
     let mut a = s.clone();
     a.sun.intensity = 0.0;
-    let f = render_frame(&a, &blobs, 0);
+    let f = render_frame(&a, &blobs);
     println!("ambient only {}", lum_stats(&f));
     output::write_png(&dir.join("amb.png"), &f, &a).unwrap();
     let mut b = s.clone();
@@ -490,15 +492,15 @@ fn look_debug() {
         zenith: Vec3::ZERO,
         horizon: Vec3::ZERO,
     };
-    let f = render_frame(&b, &blobs, 0);
+    let f = render_frame(&b, &blobs);
     println!("sun only {}", lum_stats(&f));
     output::write_png(&dir.join("sun.png"), &f, &b).unwrap();
     b.quality.ms_octaves = 1;
-    let f = render_frame(&b, &blobs, 0);
+    let f = render_frame(&b, &blobs);
     for oct in [2, 3] {
         let mut c = s.clone();
         c.quality.ms_octaves = oct;
-        let f = render_frame(&c, &blobs, 0);
+        let f = render_frame(&c, &blobs);
         println!("full {oct} octaves {}", lum_stats(&f));
         output::write_png(&dir.join(format!("oct{oct}.png")), &f, &c).unwrap();
     }

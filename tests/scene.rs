@@ -332,7 +332,7 @@ fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
     let setup = shot_setup(&s, &scene::RenderOptions::default()).unwrap();
     let settings = frame_settings(&s, &prep, &setup, k, false);
     let blobs = prep.plan.frame(k as usize);
-    nephele::render::render_frame(&settings, &blobs, k)
+    nephele::render::render_frame(&settings, &blobs)
 }
 
 #[test]

@@ -81,7 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for k in 0..args.frames {
         let settings = turntable_settings(&args, bounds, length_scale as f32, k);
         let start = Instant::now();
-        let frame = render::render_frame(&settings, blobs, k);
+        let frame = render::render_frame(&settings, blobs);
         times.push(start.elapsed().as_secs_f64());
         let path = dir.join(format!("turntable_{:04}.png", k + 1));
         output::write_png(&path, &frame, &settings)
@@ -193,6 +193,7 @@ fn turntable_settings(args: &Args, bounds: Aabb, length_scale: f32, k: u32) -> R
         exposure: 0.0,
         length_scale,
         seed: args.seed,
+        time: 0.0,
         quality: Quality::preview(),
     }
 }

@@ -11,7 +11,7 @@ use rand::RngExt;
 use rayon::prelude::*;
 
 use super::camera::{Frustum, Ray};
-use super::density::{DensityParams, Hit, density, gain};
+use super::density::{DensityParams, Hit, density, iso_slope};
 use super::light_grid::{GridShape, LightGrid};
 use super::medium::Medium;
 use super::settings::RenderSettings;
@@ -59,8 +59,8 @@ pub struct BlobMedium {
     noise_from_world: Vec<Mat3A>,
     noise_offset: Vec<Vec3A>,
     b2: Vec<f32>,
-    /// Edge and noise gain `k_i` (see the module doc).
-    gain: Vec<f32>,
+    /// World slope of the normalised field on the blob's iso-surface (see [`super::density`]).
+    slope: Vec<f32>,
     /// Bounding-ball radius of the support.
     radius: Vec<f32>,
     lo: Vec<Vec3A>,
@@ -90,15 +90,16 @@ impl BlobMedium {
             noise_from_world: Vec::new(),
             noise_offset: Vec::new(),
             b2: Vec::new(),
-            gain: Vec::new(),
+            slope: Vec::new(),
             radius: Vec::new(),
             lo: Vec::new(),
             hi: Vec::new(),
             params: DensityParams {
                 sigma: settings.cloud.density.max(0.0) / length,
-                edge: settings.cloud.edge.max(0.0),
-                amplitude: noise.amplitude.max(0.0),
-                octaves: noise.octaves.min(10),
+                edge: settings.cloud.edge.max(0.0) * length,
+                depth: noise.amplitude.max(0.0) * length,
+                octaves: noise.octaves.min(8),
+                phase: noise.evolve * settings.time,
                 inv_threshold: (1.0 / THRESHOLD) as f32,
             },
             step: 0.0,
@@ -142,11 +143,12 @@ impl BlobMedium {
             m.noise_from_world.push(local_from_world * freq);
             m.noise_offset.push(offset);
             m.b2.push((blob.b * blob.b) as f32);
-            m.gain.push(gain(blob.a, blob.b.abs()));
+            let mean_radius = (support.x * support.y * support.z).cbrt();
+            m.slope.push(iso_slope(blob.b, mean_radius as f64));
             m.radius.push(support.max_element());
             m.lo.push(center - half);
             m.hi.push(center + half);
-            radii.push((support.x * support.y * support.z).cbrt());
+            radii.push(mean_radius);
         }
         m.step = Self::step_for(settings, &mut radii);
         m
@@ -161,7 +163,9 @@ impl BlobMedium {
         }
         radii.sort_by(f32::total_cmp);
         let typical = radii[radii.len() / 2];
-        (settings.quality.step_scale * typical).clamp(length / 2000.0, length / 16.0)
+        let s = (settings.quality.step_scale * typical).clamp(length / 2000.0, length / 16.0);
+        eprintln!("step {} L", s / length);
+        std::env::var("NEPHELE_STEP").ok().and_then(|v| v.parse::<f32>().ok()).map_or(s, |v| v * length)
     }
 
     /// Number of live blobs.
@@ -211,7 +215,7 @@ impl BlobMedium {
                     t0,
                     t1,
                     b2: self.b2[i],
-                    gain: self.gain[i],
+                    slope: self.slope[i],
                     o,
                     d,
                     no: n * rel + self.noise_offset[i],
@@ -231,7 +235,7 @@ impl BlobMedium {
     /// `σ_t` at parameter `t` of the ray whose `hits` were gathered.
     #[inline]
     fn density(&self, hits: &[Hit], t: f32) -> f32 {
-        density(&self.params, hits, t)
+        density(&self.params, hits, t).0
     }
 
     /// Sample `σ_t` on the light grid's nodes (rows along +x are rays) and sweep the depths.
@@ -276,9 +280,7 @@ impl BlobMedium {
                 }
             },
         );
-        let sun = Vec3A::from(settings.sun.direction)
-            .try_normalize()
-            .unwrap_or(Vec3A::NEG_Y);
+        let sun = Vec3A::from(settings.sun.travel_dir());
         Some(LightGrid::build(shape, &sigma, sun))
     }
 }
@@ -313,6 +315,11 @@ impl Medium for BlobMedium {
     #[inline]
     fn extinction(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> f32 {
         self.density(&s.hits, t)
+    }
+
+    #[inline]
+    fn sample(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> (f32, bool) {
+        density(&self.params, &s.hits, t)
     }
 
     #[inline]
@@ -383,6 +390,7 @@ mod tests {
             exposure: 0.0,
             length_scale: 2.0,
             seed: 1,
+            time: 0.0,
             quality: Quality::final_frame(),
         };
         let m = BlobMedium::without_light(&settings, &blobs);

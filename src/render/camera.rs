@@ -78,9 +78,15 @@ impl CameraRays {
     /// The ray through the centre of pixel `(x, y)`.
     #[inline]
     pub fn pixel_ray(&self, x: u32, y: u32) -> Ray {
+        self.ray(x as f32 + 0.5, y as f32 + 0.5)
+    }
+
+    /// The ray through image position `(px, py)` in pixels (see [`CameraRays::dir`]).
+    #[inline]
+    pub fn ray(&self, px: f32, py: f32) -> Ray {
         Ray {
             origin: self.position,
-            dir: self.dir(x as f32 + 0.5, y as f32 + 0.5),
+            dir: self.dir(px, py),
         }
     }
 

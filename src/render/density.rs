@@ -1,29 +1,35 @@
 //! The cloud's density model: the extinction a ray sample sees from the blobs it crosses.
 //!
-//! With `G(x) = Σ f_i(x)` and iso-level `t`, the field value `g = G/t` is perturbed by
-//! fractal noise and pushed through a smoothstep across the soft edge:
+//! The blob field gives the large shape; its edge is eroded by billowy noise whose scale and
+//! depth are in world units (fractions of the target diagonal `L`), so a small or growing blob
+//! gets the same detail as a large one (after Schneider's Nubis clouds: a low-frequency base
+//! shape eroded at its edge by billows at a few scales).
+//!
+//! With `G(x) = Σ f_i(x)`, iso-level `t` and `g = G/t`:
 //!
 //! ```text
-//! σ_t(x) = σ · smoothstep(1 − k·edge, 1 + k·edge, g + k · amplitude · e(g) · n(x)),  σ = density / L
-//! e(g) = clamp(1 − 0.75 (g − 1), 0.25, 1)          (noise erodes the edge more than the core)
-//! n(x) = Σ_i w_i fbm(N_i x + o_i) / Σ_i w_i,  w_i = max(f_i − ½ max_j f_j, 0)
-//! k(x) = Σ_i w_i k_i / Σ_i w_i
+//! d(x)   = (g − 1) / S(x)                      approximate depth below the iso-surface (world)
+//! σ_t(x) = σ · smoothstep(0, W, d − E·e(x))     σ = density / L, W = edge·L, E = amplitude·L
+//! S(x)   = Σ_i w_i s_i / Σ_i w_i,   w_i = max(f_i − ½ max_j f_j, 0)
+//! e(x)   = Σ_i w_i erosion(N_i x + o_i) / Σ_i w_i      ∈ [0, 1]
 //! ```
 //!
-//! `k_i` is blob `i`'s field slope `|∂f_i/∂ρ|` on its own iso-surface relative to the canonical
-//! blob's (`A = 1, B = 2`: slope 4), clamped to `[¼, 16]`. Fitted blobs with a small `A` and a
-//! large `B` have a much steeper field; without `k` their edge would be hard and their noise
-//! invisible. With it, edge width and noise relief are about the same fraction of every blob.
+//! `s_i` is blob `i`'s world-space slope of `g` on its own iso-surface (`4B·r_iso / R_i`, `R_i`
+//! the support's mean radius), so `d` is a distance in world units for steep fitted blobs and
+//! soft canonical ones alike. `erosion` ([`super::noise::erosion`]) is 0 on the tops of the
+//! billows and 1 in the creases between them: the iso-surface is carved inward by up to `E`,
+//! never pushed outward, so density exists only where the model's own surface is — a blob
+//! whose field stays below the iso-level is never lifted into view.
 //!
-//! `N_i = (frequency / L)·R_iᵀ(x − c_i)` is blob `i`'s local frame in units of `L` (the length
-//! scale) and `o_i` a seeded offset drawn for the blob's index, so the texture moves and turns
-//! with its blob. The weights are continuous in `x` and keep only the dominant blobs (those
-//! above half the strongest), so a sample evaluates one to three noise stacks. Noise is skipped
-//! where it cannot change the result (`g` far below or above the edge).
+//! `N_i = (frequency / L)·R_iᵀ(x − c_i)` is blob `i`'s local frame scaled to noise units
+//! (world scale, anchored to the blob: the texture moves and turns with it) and `o_i` a seeded
+//! offset drawn for the blob's index. The weights are continuous in `x` and keep only the
+//! dominant blobs, so a sample evaluates one to three noise stacks, and only in the band
+//! `0 < d < E + W`: deeper inside the density is `σ` and outside it is 0.
 
 use glam::Vec3A;
 
-use super::noise::fbm;
+use super::noise::erosion;
 
 /// Most blobs whose weights enter the noise blend at one sample; the strongest are kept (the
 /// field still sums all).
@@ -35,8 +41,8 @@ pub(super) struct Hit {
     pub(super) t0: f32,
     pub(super) t1: f32,
     pub(super) b2: f32,
-    /// Edge and noise gain `k_i`.
-    pub(super) gain: f32,
+    /// World slope `s_i` of the normalised field on the blob's iso-surface.
+    pub(super) slope: f32,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
     pub(super) o: Vec3A,
     pub(super) d: Vec3A,
@@ -50,45 +56,49 @@ pub(super) struct Hit {
 pub(super) struct DensityParams {
     /// Extinction inside the cloud, per world unit.
     pub(super) sigma: f32,
+    /// Soft edge width `W` (world units).
     pub(super) edge: f32,
-    pub(super) amplitude: f32,
+    /// Erosion depth `E` (world units).
+    pub(super) depth: f32,
+    /// Noise octaves.
     pub(super) octaves: u32,
+    /// Noise evolution phase (noise units; 0 = frozen).
+    pub(super) phase: f32,
     pub(super) inv_threshold: f32,
 }
 
 impl DensityParams {
-    /// Noise erosion weight `e(g)`.
+    /// `σ_t` at depth `d` below the iso-surface; `erosion()` (in `[0, 1]`) is called only when
+    /// it can change the result.
     #[inline]
-    fn erosion(g: f32) -> f32 {
-        (1.0 - 0.75 * (g - 1.0)).clamp(0.25, 1.0)
-    }
-
-    /// `σ_t` for normalised field `g` and gain `k`; `noise()` (in `[−1, 1]`) is called only
-    /// when it can change the result.
-    #[inline]
-    fn extinction(&self, g: f32, k: f32, noise: impl FnOnce() -> f32) -> f32 {
-        let amp = self.amplitude * Self::erosion(g) * k;
-        let edge = self.edge * k;
-        if g + amp <= 1.0 - edge {
+    fn extinction(&self, d: f32, erosion: impl FnOnce() -> f32) -> f32 {
+        if d <= 0.0 {
             return 0.0;
         }
-        if g - amp >= 1.0 + edge {
+        if d >= self.depth + self.edge {
             return self.sigma;
         }
-        let v = if amp > 0.0 { g + amp * noise() } else { g };
-        self.sigma * smoothstep(1.0 - edge, 1.0 + edge, v)
+        let v = if self.depth > 0.0 {
+            d - self.depth * erosion()
+        } else {
+            d
+        };
+        self.sigma * smoothstep(0.0, self.edge, v)
     }
 }
 
-/// Edge and noise gain of a blob: its field slope `|∂f/∂ρ| = 4Bρ/(1+A)` at its own iso-surface
-/// `ρ² = (1+A)(1 − 1/B)`, over the canonical blob's slope 4, clamped to `[¼, 16]`; 1 when the
-/// blob alone never reaches the iso-level (`B ≤ 1`).
-pub(super) fn gain(a: f64, b: f64) -> f32 {
-    if b <= 1.0 {
-        return 1.0;
-    }
-    let rho = ((1.0 + a) * (1.0 - 1.0 / b)).sqrt();
-    ((4.0 * b * rho / (1.0 + a)) / 4.0).clamp(0.25, 16.0) as f32
+/// World slope of blob field `g = B²(1 − r²)²` (`r` in unit-support coordinates) on its own
+/// iso-surface `g = 1`, `r² = 1 − 1/B`: `4B·r`, divided by the support's mean radius
+/// `support_radius`. A blob that alone never reaches the iso-level (`B ≤ 1`) uses its steepest
+/// slope `(8/3√3)·B²` at `r = 1/√3` instead.
+pub(super) fn iso_slope(b: f64, support_radius: f64) -> f32 {
+    let b = b.abs();
+    let s = if b > 1.0 {
+        4.0 * b * (1.0 - 1.0 / b).sqrt()
+    } else {
+        8.0 / (3.0 * 3f64.sqrt()) * b * b
+    };
+    (s / support_radius.max(1e-30)) as f32
 }
 
 /// `smoothstep` over `[lo, hi]`; a step at `lo` when the range is empty.
@@ -101,9 +111,10 @@ fn smoothstep(lo: f32, hi: f32, v: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
-/// `σ_t` at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`).
+/// `(σ_t, inside)` at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`);
+/// `inside` is true within the iso-surface (`g > 1`), where erosion may still give 0.
 #[inline]
-pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> f32 {
+pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     let mut g = 0.0;
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
@@ -136,28 +147,31 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> f32 {
             }
         }
     }
-    if g <= 0.0 || !g.is_finite() {
-        return 0.0;
+    let g = g * p.inv_threshold;
+    if g <= 1.0 || !g.is_finite() {
+        return (0.0, false);
     }
-    let (mut ksum, mut wsum) = (0.0, 0.0);
+    let (mut ssum, mut wsum) = (0.0, 0.0);
     for &(f, k) in &act[..n] {
         let w = f - 0.5 * fmax;
         if w > 0.0 {
-            ksum += w * hits[k as usize].gain;
+            ssum += w * hits[k as usize].slope;
             wsum += w;
         }
     }
-    p.extinction(g * p.inv_threshold, ksum / wsum, || {
+    let d = (g - 1.0) * wsum / ssum.max(1e-30);
+    let sigma = p.extinction(d, || {
         let mut sum = 0.0;
         for &(f, k) in &act[..n] {
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
-                sum += w * fbm(h.no + h.nd * t, p.octaves);
+                sum += w * erosion(h.no + h.nd * t, p.octaves, p.phase);
             }
         }
-        (sum / wsum).clamp(-1.0, 1.0)
-    })
+        (sum / wsum).clamp(0.0, 1.0)
+    });
+    (sigma, true)
 }
 
 #[cfg(test)]
@@ -165,18 +179,34 @@ mod tests {
     use super::*;
 
     #[test]
-    fn canonical_blob_has_unit_gain() {
-        for a in [0.3, 1.0, 2.0] {
-            assert!((gain(a, (1.0 + a) / a) - 1.0 / a as f32).abs() < 1e-6);
-        }
-        assert_eq!(gain(1.0, 2.0), 1.0);
-        assert_eq!(gain(1.0, 0.5), 1.0);
-        // A steep fitted blob (A = 0.05, B = 9.48): about 8.7 times the canonical slope.
-        assert!(
-            (gain(0.05, 9.48) - 8.75).abs() < 0.05,
-            "{}",
-            gain(0.05, 9.48)
-        );
+    fn iso_slope_of_canonical_and_steep_blobs() {
+        // Canonical blob A = 1, B = 2: r_iso = √½, slope 4·2·√½ = 5.657 per unit support radius.
+        assert!((iso_slope(2.0, 1.0) - 5.656_854).abs() < 1e-4);
+        // Halving the size doubles the world slope.
+        assert!((iso_slope(2.0, 0.5) - 2.0 * iso_slope(2.0, 1.0)).abs() < 1e-4);
+        // Sub-threshold blob: steepest slope, positive and finite.
+        let s = iso_slope(0.5, 1.0);
+        assert!(s > 0.0 && s < 1.0, "{s}");
+    }
+
+    #[test]
+    fn extinction_is_zero_outside_full_deep_inside_and_eroded_between() {
+        let p = DensityParams {
+            sigma: 10.0,
+            edge: 0.01,
+            depth: 0.05,
+            octaves: 3,
+            phase: 0.0,
+            inv_threshold: 1.0,
+        };
+        assert_eq!(p.extinction(-0.1, || unreachable!()), 0.0);
+        assert_eq!(p.extinction(0.0, || unreachable!()), 0.0);
+        assert_eq!(p.extinction(0.07, || unreachable!()), 10.0);
+        // On a billow top (erosion 0) the edge ramp starts at the iso-surface; in a crease
+        // (erosion 1) the surface is carved in by the full depth.
+        assert_eq!(p.extinction(0.02, || 0.0), 10.0);
+        assert_eq!(p.extinction(0.02, || 1.0), 0.0);
+        assert!((p.extinction(0.005, || 0.0) - 5.0).abs() < 1e-5);
     }
 
     #[test]

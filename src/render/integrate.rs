@@ -4,7 +4,12 @@
 //!
 //! In: [`RenderSettings`], a medium, the frame index. Out: a [`Frame`] of premultiplied cloud
 //! radiance, coverage and depth. Deterministic at any thread count: each pixel depends only on
-//! its own generator `item_rng(seed ^ frame, Stream::Render, pixel)`.
+//! its own generator `item_rng(seed, Stream::Render, pixel)`. The jitter is fixed per pixel,
+//! not per frame, so a cloud that does not move renders to the same bits in every frame (no
+//! shimmer in holds).
+//!
+//! With `quality.samples = n > 1` a pixel averages `n` rays on a stratified `⌈√n⌉²` grid
+//! inside it (each jittered within its cell), anti-aliasing the eroded edges.
 //!
 //! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
 //! the medium, see [`march`]); a segment of length `h` is sampled at `s + ξ·h` (one jitter `ξ`
@@ -42,29 +47,23 @@ struct PixelResult {
 }
 
 /// Render `medium` as seen by `settings.camera`: full shading.
-pub fn render_medium<M: Medium>(settings: &RenderSettings, medium: &M, frame_index: u32) -> Frame {
-    render_tiles::<M, true>(settings, medium, frame_index)
+pub fn render_medium<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
+    render_tiles::<M, true>(settings, medium)
 }
 
 /// Coverage and depth only (RGB stays 0): the same march without lighting, for profiling the
 /// cost of shading and for coverage tests.
-pub fn render_medium_unshaded<M: Medium>(
-    settings: &RenderSettings,
-    medium: &M,
-    frame_index: u32,
-) -> Frame {
-    render_tiles::<M, false>(settings, medium, frame_index)
+pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
+    render_tiles::<M, false>(settings, medium)
 }
 
-fn render_tiles<M: Medium, const SHADE: bool>(
-    settings: &RenderSettings,
-    medium: &M,
-    frame_index: u32,
-) -> Frame {
+fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium: &M) -> Frame {
     let (w, h) = (settings.width, settings.height);
     let cam = CameraRays::new(&settings.camera, w, h);
     let shading = Shading::new(settings);
-    let seed = settings.seed ^ frame_index as u64;
+    let seed = settings.seed;
+    let samples = settings.quality.samples.max(1);
+    let side = (samples as f32).sqrt().ceil() as u32;
     let optical_step = settings.quality.optical_step.max(1e-3);
     let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let tiles: Vec<Vec<PixelResult>> = (0..tx * ty)
@@ -79,16 +78,60 @@ fn render_tiles<M: Medium, const SHADE: bool>(
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let pixel = y as u64 * w as u64 + x as u64;
-                        let jitter: f32 = item_rng(seed, Stream::Render, pixel).random();
-                        let ray = cam.pixel_ray(x, y);
-                        out.push(march::<M, SHADE>(
-                            medium,
-                            scratch,
-                            &shading,
-                            &ray,
-                            jitter,
-                            optical_step,
-                        ));
+                        let mut rng = item_rng(seed, Stream::Render, pixel);
+                        if samples == 1 {
+                            let ray = cam.pixel_ray(x, y);
+                            let jitter: f32 = rng.random();
+                            out.push(march::<M, SHADE>(
+                                medium,
+                                scratch,
+                                &shading,
+                                &ray,
+                                jitter,
+                                optical_step,
+                            ));
+                            continue;
+                        }
+                        let mut acc = PixelResult {
+                            rgb: Vec3A::ZERO,
+                            transmittance: 0.0,
+                            depth: 0.0,
+                        };
+                        let (mut depth_w, mut hits) = (0.0f32, 0u32);
+                        for k in 0..samples {
+                            let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
+                            let (u, v, jitter): (f32, f32, f32) =
+                                (rng.random(), rng.random(), rng.random());
+                            let ray = cam.ray(
+                                x as f32 + (cx + u) / side as f32,
+                                y as f32 + (cy + v) / side as f32,
+                            );
+                            let r = march::<M, SHADE>(
+                                medium,
+                                scratch,
+                                &shading,
+                                &ray,
+                                jitter,
+                                optical_step,
+                            );
+                            acc.rgb += r.rgb;
+                            acc.transmittance += r.transmittance;
+                            if r.depth.is_finite() {
+                                let c = 1.0 - r.transmittance;
+                                acc.depth += r.depth * c;
+                                depth_w += c;
+                                hits += 1;
+                            }
+                        }
+                        let inv = 1.0 / samples as f32;
+                        acc.rgb *= inv;
+                        acc.transmittance *= inv;
+                        acc.depth = if hits > 0 && depth_w > 0.0 {
+                            acc.depth / depth_w
+                        } else {
+                            f32::INFINITY
+                        };
+                        out.push(acc);
                     }
                 }
                 out
@@ -151,8 +194,8 @@ fn march<M: Medium, const SHADE: bool>(
             let len = h.min(b - s);
             let t = s + jitter * len;
             let x = ray.at(t);
-            let sigma = medium.extinction(scratch, t, x);
-            if sigma <= 0.0 {
+            let (sigma, inside) = medium.sample(scratch, t, x);
+            if !inside {
                 last_empty = t;
                 s += len;
                 empty_run += len;
@@ -167,6 +210,10 @@ fn march<M: Medium, const SHADE: bool>(
                 // (everything before it was sampled empty; what follows was only assumed so).
                 h = fine;
                 s = last_empty;
+                continue;
+            }
+            if sigma <= 0.0 {
+                s += len;
                 continue;
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());

@@ -34,6 +34,16 @@ pub trait Medium: Sync {
     /// Extinction `σ_t ≥ 0` (per unit length) at `x = ray.at(t)`, `t` inside the intervals.
     fn extinction(&self, scratch: &Self::Scratch, t: f32, x: Vec3A) -> f32;
 
+    /// Extinction at `t` and whether `x` lies inside the medium's shape even where the
+    /// extinction is zero (e.g. an eroded crease inside a cloud). The integrator marches finely
+    /// from the first such point, so thin structures between coarse samples are not skipped.
+    /// Default: inside exactly where the extinction is positive.
+    #[inline]
+    fn sample(&self, scratch: &Self::Scratch, t: f32, x: Vec3A) -> (f32, bool) {
+        let sigma = self.extinction(scratch, t, x);
+        (sigma, sigma > 0.0)
+    }
+
     /// Optical depths `[toward the sun, straight up]` from `x`.
     fn light_depths(&self, x: Vec3A) -> [f32; 2];
 

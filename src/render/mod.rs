@@ -26,6 +26,7 @@ pub mod camera;
 pub mod density;
 pub mod integrate;
 pub mod light_grid;
+pub mod memory;
 pub mod medium;
 pub mod noise;
 pub mod output;
@@ -35,7 +36,10 @@ pub mod shading;
 pub use blobs::{BlobMedium, ray_ellipsoid};
 pub use integrate::{render_medium, render_medium_unshaded};
 pub use medium::{Homogeneous, Medium, Shape};
-pub use settings::{Camera, CloudMaterial, Noise, Quality, RenderSettings, Sky, Sun};
+pub use settings::{
+    Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
+};
+pub use shading::SkyDome;
 
 use crate::blobby::Blob;
 
@@ -56,9 +60,9 @@ pub struct Frame {
     pub depth: Vec<f32>,
 }
 
-/// Render one frame. `frame_index` decorrelates per-pixel jitter between frames.
-/// Deterministic for a given input at any thread count.
-pub fn render_frame(settings: &RenderSettings, blobs: &[Blob], frame_index: u32) -> Frame {
+/// Render one frame. Deterministic for a given input at any thread count; the per-pixel
+/// jitter does not change between frames, so identical blobs give identical frames.
+pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
-    render_medium(settings, &medium, frame_index)
+    render_medium(settings, &medium)
 }

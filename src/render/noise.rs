@@ -1,4 +1,5 @@
-//! Seed-free 3-D gradient noise (Perlin 2002, "Improving Noise") and its fractal sum (fBm).
+//! Seed-free 3-D gradient noise (Perlin 2002, "Improving Noise") and the cloud edge erosion
+//! built from it (billows at the low octaves, wisps at the high ones).
 //!
 //! In: a point in noise space (the renderer maps each blob's local frame there, with a seeded
 //! per-blob offset, so the seed enters through the offset and the lattice hash is fixed).
@@ -70,34 +71,56 @@ pub fn gradient_noise(p: Vec3A) -> f32 {
     lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
 }
 
-/// Lacunarity of [`fbm`]: slightly off 2 so octave lattices do not line up.
+/// Frequency ratio between erosion octaves: slightly off 2 so octave lattices do not line up.
 pub const LACUNARITY: f32 = 2.03;
 
-/// Billow octave: `1.8·|n| − 0.4` of gradient noise `n` (mean |n| ≈ 0.22, so mean ≈ 0):
-/// rounded bumps separated by sharp creases where `n` crosses zero — the cauliflower puffs of
-/// cumulus when added to the field.
+/// Shift between octaves (noise units), so the lattice zeros at the origin do not coincide.
+const OCTAVE_SHIFT: Vec3A = Vec3A::new(17.31, -9.77, 5.13);
+
+/// Direction each octave drifts along with the evolution phase (different per octave, so the
+/// sum changes shape instead of sliding as a whole).
+const EVOLVE_DIR: [Vec3A; 3] = [
+    Vec3A::new(0.0, 1.0, 0.0),
+    Vec3A::new(0.6, -0.8, 0.0),
+    Vec3A::new(-0.48, 0.0, 0.877),
+];
+
+/// Billow height of gradient noise `n`: `x(2 − x)` with `x = min(1, 2|n|)` — 0 on the sheets
+/// where `n` crosses zero (the creases between puffs), rising steeply and rounding off on top
+/// (the puffs of cumulus).
 #[inline]
 pub fn billow(p: Vec3A) -> f32 {
-    1.8 * gradient_noise(p).abs() - 0.4
+    let x = (2.0 * gradient_noise(p).abs()).min(1.0);
+    x * (2.0 - x)
 }
 
-/// Fractal sum of [`billow`] octaves with gain ½ and lacunarity [`LACUNARITY`], each octave
-/// shifted, normalised by the total amplitude: mean ≈ 0, about `[−0.4, 1.2]`, most values in
-/// `[−0.4, 0.8]`. `octaves = 0` gives 0.
+/// Edge erosion in `[0, 1]` at noise point `p`: 0 on the tops of the billows, 1 deep in the
+/// creases. Octave 0 and 1 are [`billow`]s (weights 1, ½), octave 2 and above wispy plain
+/// gradient noise `½ + ½n` (weights 0.3, 0.15, …); `octaves = 0` gives 0 (no erosion).
+/// `phase` moves each octave along its own direction (slow evolution; 0 = frozen).
 #[inline]
-pub fn fbm(p: Vec3A, octaves: u32) -> f32 {
-    let mut sum = 0.0;
-    let mut amp = 1.0;
-    let mut norm = 0.0;
+pub fn erosion(p: Vec3A, octaves: u32, phase: f32) -> f32 {
+    let (mut sum, mut norm, mut wisp) = (0.0, 0.0, 0.3);
     let mut q = p;
     for o in 0..octaves {
-        sum += amp * billow(q);
-        norm += amp;
-        amp *= 0.5;
-        // Shift each octave so that the lattice zeros at the origin do not coincide.
-        q = q * LACUNARITY + Vec3A::new(17.31, -9.77, 5.13) * (o + 1) as f32;
+        let drift = EVOLVE_DIR[(o as usize).min(2)] * (phase * (1.0 + 0.5 * o as f32));
+        let (h, w) = match o {
+            0 => (billow(q + drift), 1.0),
+            1 => (billow(q + drift), 0.5),
+            _ => {
+                wisp *= 0.5;
+                (0.5 + 0.5 * gradient_noise(q + drift), 2.0 * wisp)
+            }
+        };
+        sum += w * h;
+        norm += w;
+        q = q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
     }
-    if norm > 0.0 { sum / norm } else { 0.0 }
+    if norm > 0.0 {
+        (1.0 - sum / norm).clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
@@ -105,14 +128,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn noise_is_zero_on_lattice_bounded_and_varied() {
+    fn noise_is_zero_on_lattice_and_erosion_bounded_and_varied() {
         assert_eq!(gradient_noise(Vec3A::new(3.0, -2.0, 7.0)), 0.0);
         let (mut lo, mut hi, mut sum, mut sq) = (f32::MAX, f32::MIN, 0.0f64, 0.0f64);
         let n = 20_000;
         for i in 0..n {
             let t = i as f32;
             let p = Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011);
-            let v = fbm(p, 4);
+            let v = erosion(p, 3, 0.0);
             lo = lo.min(v);
             hi = hi.max(v);
             sum += v as f64;
@@ -120,15 +143,18 @@ mod tests {
         }
         let mean = sum / n as f64;
         let sd = (sq / n as f64 - mean * mean).sqrt();
-        assert!(lo >= -0.4 && hi < 1.3, "range {lo}..{hi}");
-        assert!(mean.abs() < 0.05, "mean {mean}");
-        assert!(sd > 0.15 && sd < 0.5, "sd {sd}");
+        assert!(lo >= 0.0 && hi <= 1.0 && hi - lo > 0.6, "range {lo}..{hi}");
+        assert!(mean > 0.2 && mean < 0.6, "mean {mean}");
+        assert!(sd > 0.08 && sd < 0.4, "sd {sd}");
+        assert_eq!(erosion(Vec3A::ONE, 0, 0.0), 0.0);
     }
 
     #[test]
-    fn noise_is_continuous() {
+    fn erosion_is_continuous_and_evolves() {
         let p = Vec3A::new(1.234, 5.678, -9.1);
         let e = Vec3A::splat(1e-4);
-        assert!((fbm(p, 4) - fbm(p + e, 4)).abs() < 1e-2);
+        assert!((erosion(p, 3, 0.0) - erosion(p + e, 3, 0.0)).abs() < 1e-2);
+        assert!((erosion(p, 3, 0.0) - erosion(p, 3, 1e-4)).abs() < 1e-2);
+        assert_ne!(erosion(p, 3, 0.0), erosion(p, 3, 0.37));
     }
 }

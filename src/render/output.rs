@@ -62,10 +62,11 @@ pub fn write_png(path: &Path, frame: &Frame, settings: &RenderSettings) -> std::
 pub fn tonemapped(frame: &Frame, settings: &RenderSettings) -> image::RgbImage {
     let cam = CameraRays::new(&settings.camera, frame.width, frame.height);
     let gain = settings.exposure.exp2();
+    let dome = super::shading::SkyDome::new(&settings.sky, &settings.sun);
     image::RgbImage::from_fn(frame.width, frame.height, |x, y| {
         let i = (y * frame.width + x) as usize;
         let dir = Vec3::from(cam.pixel_ray(x, y).dir);
-        let sky = settings.sky.radiance(dir);
+        let sky = dome.radiance(dir);
         let c = (Vec3::from(frame.rgb[i]) + sky * (1.0 - frame.alpha[i])) * gain;
         let m = |v: f32| (srgb_encode(aces(v)) * 255.0 + 0.5) as u8;
         image::Rgb([m(c.x), m(c.y), m(c.z)])

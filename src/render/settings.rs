@@ -18,15 +18,22 @@ pub struct Camera {
     pub fov_deg: f32,
 }
 
-/// The sun: a directional light.
+/// The sun: a directional light, given by a direction or by its position in the sky.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Sun {
     /// Direction the light travels (from the sun toward the scene); need not be unit length.
+    /// Ignored when `elevation_deg` is given.
     pub direction: Vec3,
-    /// Linear RGB colour.
+    /// Height of the sun above the horizon in degrees (`0..=90`); when given, the sun's
+    /// direction comes from it and `azimuth_deg`, and a [`Sky::HosekWilkie`] sky follows it.
+    pub elevation_deg: Option<f32>,
+    /// Where the sun stands around +Y in degrees, with the camera's convention (0 = toward +Z,
+    /// 90 = toward +X); used with `elevation_deg`.
+    pub azimuth_deg: f32,
+    /// Linear RGB colour (at the zenith: a [`Sky::HosekWilkie`] sky reddens a low sun).
     pub color: Vec3,
-    /// Radiance scale.
+    /// Irradiance scale.
     pub intensity: f32,
 }
 
@@ -34,9 +41,29 @@ impl Default for Sun {
     fn default() -> Self {
         Sun {
             direction: Vec3::new(-0.4, -0.8, -0.3),
+            elevation_deg: None,
+            azimuth_deg: 0.0,
             color: Vec3::new(1.0, 0.95, 0.85),
             intensity: 12.0,
         }
+    }
+}
+
+impl Sun {
+    /// Unit direction the light travels (straight down when the direction is zero).
+    pub fn travel_dir(&self) -> Vec3 {
+        match self.elevation_deg {
+            Some(el) => {
+                let (el, az) = (el.to_radians(), self.azimuth_deg.to_radians());
+                -Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos())
+            }
+            None => self.direction.try_normalize().unwrap_or(Vec3::NEG_Y),
+        }
+    }
+
+    /// Elevation of the sun above the horizon in degrees (from the direction when not given).
+    pub fn elevation(&self) -> f32 {
+        (-self.travel_dir().y).clamp(-1.0, 1.0).asin().to_degrees()
     }
 }
 
@@ -51,6 +78,14 @@ pub enum Sky {
         /// Colour at the horizon.
         horizon: Vec3,
     },
+    /// Hosek–Wilkie physically based clear sky (2012) for the sun's elevation, scaled to the
+    /// sun's intensity; the sun is reddened by the air mass it shines through.
+    HosekWilkie {
+        /// Atmospheric turbidity, `1..=10` (2 = very clear, 3 = clear, 6+ = hazy).
+        turbidity: f32,
+        /// Ground albedo, `0..=1`.
+        ground_albedo: f32,
+    },
 }
 
 impl Default for Sky {
@@ -62,24 +97,30 @@ impl Default for Sky {
     }
 }
 
-/// Fractal noise that breaks up the cloud's density, anchored to the blobs.
+/// Noise that erodes the cloud's edge into billows and wisps, anchored to the blobs.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Noise {
-    /// Strength relative to the iso-level (0 = smooth blobs).
+    /// Erosion depth: how far the creases between billows cut into the cloud, as a fraction of
+    /// the target's bounding-box diagonal (0 = smooth blobs).
     pub amplitude: f32,
-    /// Base frequency in cycles per bounding-box diagonal of the target.
+    /// Frequency of the largest billows in cycles per bounding-box diagonal of the target
+    /// (each further octave is about twice as fine).
     pub frequency: f32,
-    /// Number of fBm octaves.
+    /// Number of octaves: 1–2 billowy, 3 and up wispy (0 = no erosion).
     pub octaves: u32,
+    /// Slow evolution of the noise, in cycles per second (0 = frozen; the noise then only
+    /// moves with the blobs).
+    pub evolve: f32,
 }
 
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 1.5,
-            frequency: 5.0,
-            octaves: 4,
+            amplitude: 0.05,
+            frequency: 7.0,
+            octaves: 3,
+            evolve: 0.0,
         }
     }
 }
@@ -91,13 +132,17 @@ pub struct CloudMaterial {
     /// Extinction inside the cloud, per bounding-box diagonal of the target (so it does not
     /// depend on the model's units).
     pub density: f32,
-    /// Width of the soft edge around the iso-level, in field units (0 = hard edge).
+    /// Width of the soft edge (density ramp) as a fraction of the bounding-box diagonal
+    /// (0 = hard edge).
     pub edge: f32,
     /// Single-scattering albedo.
     pub albedo: f32,
     /// Henyey–Greenstein asymmetry (forward scattering > 0).
     pub phase_g: f32,
-    /// Density noise.
+    /// Add the multiple-scattering approximation to single scattering (false = single
+    /// scattering only, the physically exact core).
+    pub multiple_scattering: bool,
+    /// Edge erosion noise.
     pub noise: Noise,
 }
 
@@ -105,12 +150,25 @@ impl Default for CloudMaterial {
     fn default() -> Self {
         CloudMaterial {
             density: 40.0,
-            edge: 0.25,
+            edge: 0.01,
             albedo: 0.95,
             phase_g: 0.75,
+            multiple_scattering: true,
             noise: Noise::default(),
         }
     }
+}
+
+/// The scene's quality preset (maps to a [`Quality`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum QualityPreset {
+    /// Fast and rough, for looking at motion.
+    Preview,
+    /// The default: clean frames at one sample per pixel.
+    #[default]
+    Final,
+    /// Anti-aliased (4 samples per pixel), finer steps and shadows: about 4–5× `Final`.
+    Production,
 }
 
 /// Speed/quality trade-offs of the ray marcher.
@@ -127,9 +185,26 @@ pub struct Quality {
     /// Largest optical thickness `σ·h` of one march step inside the cloud (smaller = less
     /// grain at the sunlit surface, slower).
     pub optical_step: f32,
+    /// Rays per pixel (stratified inside the pixel; 1 = through the pixel centre).
+    pub samples: u32,
 }
 
 impl Quality {
+    /// The settings of a preset.
+    pub fn preset(preset: QualityPreset) -> Quality {
+        match preset {
+            QualityPreset::Preview => Quality::preview(),
+            QualityPreset::Final => Quality::final_frame(),
+            QualityPreset::Production => Quality {
+                step_scale: 0.2,
+                shadow_grid: 192,
+                ms_octaves: 4,
+                optical_step: 0.2,
+                samples: 4,
+            },
+        }
+    }
+
     /// Full quality for final frames.
     pub fn final_frame() -> Quality {
         Quality {
@@ -137,6 +212,7 @@ impl Quality {
             shadow_grid: 128,
             ms_octaves: 3,
             optical_step: 0.25,
+            samples: 1,
         }
     }
 
@@ -147,6 +223,7 @@ impl Quality {
             shadow_grid: 48,
             ms_octaves: 2,
             optical_step: 0.5,
+            samples: 1,
         }
     }
 }
@@ -172,6 +249,8 @@ pub struct RenderSettings {
     pub length_scale: f32,
     /// Seed for per-pixel jitter and noise offsets.
     pub seed: u64,
+    /// Time of the frame in seconds from the start of the shot (drives `cloud.noise.evolve`).
+    pub time: f32,
     /// March quality.
     pub quality: Quality,
 }

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::SceneError;
 use crate::animate::Animation;
-use crate::render::{CloudMaterial, Sky, Sun};
+use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 
 /// A scene file as written (`Scene(...)`; the struct name may also be left out).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -45,6 +45,9 @@ pub struct SceneFile {
     /// Exposure in stops for the PNG frames.
     #[serde(default)]
     pub exposure: f32,
+    /// Render quality preset (`--preview` overrides it with `Preview`).
+    #[serde(default)]
+    pub quality: QualityPreset,
     /// Where frames go.
     #[serde(default)]
     pub output: OutputSpec,
@@ -326,27 +329,10 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
             }
         }
     }
-    finite("sun.direction", &s.sun.direction.to_array())?;
-    finite("sun.color", &s.sun.color.to_array())?;
-    finite("sun.intensity", &[s.sun.intensity])?;
-    if s.sun.direction.length() <= 0.0 {
-        return Err(bad("sun.direction", "must not be zero".to_string()));
-    }
-    let Sky::Gradient { zenith, horizon } = s.sky;
-    finite("sky.zenith", &zenith.to_array())?;
-    finite("sky.horizon", &horizon.to_array())?;
-    let c = &s.cloud;
-    finite(
-        "cloud",
-        &[
-            c.density,
-            c.edge,
-            c.albedo,
-            c.phase_g,
-            c.noise.amplitude,
-            c.noise.frequency,
-        ],
-    )?;
+    validate_light(&bad, &s.sun, &s.sky)?;
+    validate_cloud(&bad, &s.cloud)?;
+    crate::render::memory::check(s.shot.width, s.shot.height, s.quality)
+        .map_err(|message| bad("shot", message))?;
     if s.output.formats.is_empty() {
         return Err(bad(
             "output.formats",
@@ -372,4 +358,117 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         crate::animate::AnimateError::Invalid { field, message } => bad(&field, message),
         other => bad("animation", other.to_string()),
     })
+}
+
+/// `sun` and `sky`: finite values, angles and model parameters in range.
+fn validate_light(
+    bad: &dyn Fn(&str, String) -> SceneError,
+    sun: &Sun,
+    sky: &Sky,
+) -> Result<(), SceneError> {
+    let finite = |field: &str, v: &[f32]| {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(bad(field, format!("must be finite, got {v:?}")))
+        }
+    };
+    finite("sun.direction", &sun.direction.to_array())?;
+    finite("sun.color", &sun.color.to_array())?;
+    finite("sun.azimuth_deg", &[sun.azimuth_deg])?;
+    if !(sun.intensity.is_finite() && sun.intensity >= 0.0) {
+        return Err(bad(
+            "sun.intensity",
+            format!("must be ≥ 0, got {}", sun.intensity),
+        ));
+    }
+    if sun.color.min_element() < 0.0 {
+        return Err(bad(
+            "sun.color",
+            format!("must not be negative, got {:?}", sun.color.to_array()),
+        ));
+    }
+    match sun.elevation_deg {
+        Some(el) if !(0.0..=90.0).contains(&el) => {
+            return Err(bad(
+                "sun.elevation_deg",
+                format!("must be in 0..=90 (degrees above the horizon), got {el}"),
+            ));
+        }
+        None if sun.direction.length() <= 0.0 => {
+            return Err(bad("sun.direction", "must not be zero".to_string()));
+        }
+        _ => {}
+    }
+    match *sky {
+        Sky::Gradient { zenith, horizon } => {
+            finite("sky.zenith", &zenith.to_array())?;
+            finite("sky.horizon", &horizon.to_array())?;
+            if zenith.min_element() < 0.0 || horizon.min_element() < 0.0 {
+                return Err(bad("sky", "colours must not be negative".to_string()));
+            }
+        }
+        Sky::HosekWilkie {
+            turbidity,
+            ground_albedo,
+        } => {
+            if !(1.0..=10.0).contains(&turbidity) {
+                return Err(bad(
+                    "sky.turbidity",
+                    format!("must be in 1..=10, got {turbidity}"),
+                ));
+            }
+            if !(0.0..=1.0).contains(&ground_albedo) {
+                return Err(bad(
+                    "sky.ground_albedo",
+                    format!("must be in 0..=1, got {ground_albedo}"),
+                ));
+            }
+            if sun.elevation() < 0.0 {
+                return Err(bad(
+                    "sun",
+                    "a HosekWilkie sky needs the sun above the horizon (set sun.elevation_deg)"
+                        .to_string(),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `cloud`: non-negative densities and noise scales, albedo and phase in range.
+fn validate_cloud(
+    bad: &dyn Fn(&str, String) -> SceneError,
+    c: &CloudMaterial,
+) -> Result<(), SceneError> {
+    for (field, v) in [
+        ("cloud.density", c.density),
+        ("cloud.edge", c.edge),
+        ("cloud.noise.amplitude", c.noise.amplitude),
+        ("cloud.noise.frequency", c.noise.frequency),
+        ("cloud.noise.evolve", c.noise.evolve),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(bad(field, format!("must be a number ≥ 0, got {v}")));
+        }
+    }
+    if !(0.0..=1.0).contains(&c.albedo) {
+        return Err(bad(
+            "cloud.albedo",
+            format!("must be in 0..=1, got {}", c.albedo),
+        ));
+    }
+    if !(c.phase_g > -1.0 && c.phase_g < 1.0) {
+        return Err(bad(
+            "cloud.phase_g",
+            format!("must be in (−1, 1), got {}", c.phase_g),
+        ));
+    }
+    if c.noise.octaves > 8 {
+        return Err(bad(
+            "cloud.noise.octaves",
+            format!("must be at most 8, got {}", c.noise.octaves),
+        ));
+    }
+    Ok(())
 }

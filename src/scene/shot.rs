@@ -187,10 +187,11 @@ pub fn frame_settings(
         exposure: f.exposure,
         length_scale: prep.bounds.diagonal().max(1e-12) as f32,
         seed: f.seed,
+        time: k as f32 / f.shot.fps as f32,
         quality: if preview {
             Quality::preview()
         } else {
-            Quality::final_frame()
+            Quality::preset(f.quality)
         },
     }
 }
@@ -233,7 +234,7 @@ pub fn render_shot(
             let k = frame - 1;
             let blobs = prep.plan.frame(k as usize);
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
-            let image = render::render_frame(&settings, &blobs, k);
+            let image = render::render_frame(&settings, &blobs);
             let rendered = Instant::now();
             write_frame(scene, &setup.dir, frame, &image, &settings, opts, &blobs)?;
             render_s += (rendered - start).as_secs_f64();

@@ -1,0 +1,210 @@
+#!/usr/bin/env python3
+"""Render nephele's density grid in Mitsuba 3 and compare with nephele's own frames.
+
+Input: a folder written by `tests/mitsuba.rs` (see its module doc):
+  meta.json       camera, sun, phase function, grid placement, nephele's times
+  grid.f32        extinction per world unit at voxel centres, (z, y, x) little-endian f32
+  sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb)
+  nephele_ss.f32  nephele's frame, single scattering only, over the sky: (y, x, rgba)
+  nephele_ms.f32  the same with nephele's multiple-scattering approximation
+
+Mitsuba renders the same camera, sun (directional, same irradiance) and sky (envmap) with
+`volpath`: `max_depth` 2 (single scattering) and 64 (full transport), each twice with
+different seeds so that the reference's own noise can be measured and excluded.
+
+Output (stdout, JSON):
+  ss_rel_rmse       relative RMSE of nephele's single scattering against Mitsuba's (linear
+                    luminance over the cloud's pixels), the reference's noise excluded
+  ss_rel_rmse_raw   the same, noise included; ss_ref_noise: the reference's relative noise
+  mean_lum_*        mean ACES luminance of the cloud (alpha > 0.5) for nephele SS / MS and
+                    Mitsuba SS / full transport
+  base_top_*        mean luminance of the cloud's lowest quarter of rows over its top quarter
+  seconds_*         render times (nephele's from meta.json)
+With --picture PATH: a 2×2 sheet (nephele SS | Mitsuba SS / nephele MS | Mitsuba full).
+
+Usage: python3 tools/mitsuba_compare.py DIR [--spp 256] [--picture out.png]
+Needs `pip install mitsuba numpy`; uses the `llvm_ad_rgb` variant when LLVM ≥ 16 is
+installed, else `scalar_rgb` (same image, slower).
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+import mitsuba as mi
+
+
+def pick_variant():
+    for v in ("llvm_ad_rgb", "scalar_rgb"):
+        try:
+            mi.set_variant(v)
+            # LLVM < 16 aborts only at the first kernel: try one.
+            mi.load_dict({"type": "scene"})
+            return v
+        except Exception:
+            continue
+    sys.exit("no usable mitsuba variant")
+
+
+def load(d, name, shape):
+    return np.fromfile(os.path.join(d, name), dtype="<f4").reshape(shape)
+
+
+def scene_dict(meta, grid, sky, max_depth, spp, seed):
+    T = mi.ScalarTransform4f
+    lo, hi = np.array(meta["grid_lo"]), np.array(meta["grid_hi"])
+    g = meta["g"]
+    return {
+        "type": "scene",
+        "integrator": {"type": "volpath", "max_depth": max_depth},
+        "sensor": {
+            "type": "perspective",
+            "fov": meta["fov_deg"],
+            "fov_axis": "y",
+            "to_world": T().look_at(
+                origin=meta["position"], target=meta["look_at"], up=meta["up"]
+            ),
+            "film": {
+                "type": "hdrfilm",
+                "width": meta["width"],
+                "height": meta["height"],
+                "rfilter": {"type": "box"},
+                "pixel_format": "rgb",
+            },
+            "sampler": {"type": "independent", "sample_count": spp, "seed": seed},
+        },
+        "sun": {
+            "type": "directional",
+            "direction": meta["sun_dir"],
+            "irradiance": {"type": "rgb", "value": meta["sun_irradiance"]},
+        },
+        "sky": {"type": "envmap", "bitmap": mi.Bitmap(sky)},
+        "cloud": {
+            "type": "cube",
+            "bsdf": {"type": "null"},
+            "to_world": T().translate(((lo + hi) / 2).tolist()).scale(((hi - lo) / 2).tolist()),
+            "interior": {
+                "type": "heterogeneous",
+                "albedo": meta["albedo"],
+                "scale": 1.0,
+                "sigma_t": {
+                    "type": "gridvolume",
+                    "grid": mi.VolumeGrid(grid),
+                    "to_world": T().translate(lo.tolist()).scale((hi - lo).tolist()),
+                },
+                "phase": {
+                    "type": "blendphase",
+                    "weight": meta["back_weight"],
+                    "phase1": {"type": "hg", "g": g},
+                    "phase2": {"type": "hg", "g": g * meta["back_ratio"]},
+                },
+            },
+        },
+    }
+
+
+def render(meta, grid, sky, max_depth, spp, seed):
+    scene = mi.load_dict(scene_dict(meta, grid, sky, max_depth, spp, seed))
+    start = time.time()
+    img = np.array(mi.render(scene, spp=spp, seed=seed))
+    return img[..., :3], time.time() - start
+
+
+def aces(x):
+    x = np.maximum(x, 0.0)
+    return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+
+
+def lum(rgb):
+    return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+
+
+def srgb8(x):
+    x = np.clip(x, 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return (s * 255 + 0.5).astype(np.uint8)
+
+
+def base_top(l, mask):
+    rows = np.nonzero(mask.any(axis=1))[0]
+    top, bottom = rows.min(), rows.max()
+    q = max(1, (bottom - top + 1) // 4)
+    tmask, bmask = mask.copy(), mask.copy()
+    tmask[top + q :] = False
+    bmask[: bottom - q + 1] = False
+    return float(l[bmask].mean() / l[tmask].mean())
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("dir")
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--picture")
+    args = ap.parse_args()
+    variant = pick_variant()
+    meta = json.load(open(os.path.join(args.dir, "meta.json")))
+    w, h = meta["width"], meta["height"]
+    nx, ny, nz = meta["grid_dims"]
+    grid = load(args.dir, "grid.f32", (nz, ny, nx, 1))
+    sw, sh = meta["sky_size"]
+    sky = load(args.dir, "sky.f32", (sh, sw, 3))
+    n_ss = load(args.dir, "nephele_ss.f32", (h, w, 4))
+    n_ms = load(args.dir, "nephele_ms.f32", (h, w, 4))
+    alpha = n_ss[..., 3]
+    gain = 2.0 ** meta["exposure"]
+
+    out = {"variant": variant, "spp": args.spp}
+    ref = {}
+    for name, depth in (("ss", 2), ("full", 64)):
+        a, ta = render(meta, grid, sky, depth, args.spp, 1)
+        b, tb = render(meta, grid, sky, depth, args.spp, 2)
+        ref[name] = (a, b)
+        out[f"seconds_mitsuba_{name}_{args.spp}spp"] = round(ta, 2)
+        out[f"seconds_mitsuba_{name}_2x{args.spp}spp"] = round(ta + tb, 2)
+    out["seconds_nephele_ss"] = round(meta["nephele_seconds_ss"], 3)
+    out["seconds_nephele_ms"] = round(meta["nephele_seconds_ms"], 3)
+
+    # Single scattering: linear luminance over the cloud's pixels.
+    cloud = alpha > 0.02
+    a, b = (lum(x)[cloud] for x in ref["ss"])
+    m = 0.5 * (a + b)
+    n = lum(n_ss[..., :3])[cloud]
+    mse = float(np.mean((n - m) ** 2))
+    noise = float(np.mean((a - b) ** 2)) / 4.0  # variance of the mean of two renders
+    scale = float(m.mean())
+    out["ss_rel_rmse"] = round(np.sqrt(max(mse - noise, 0.0)) / scale, 4)
+    out["ss_rel_rmse_raw"] = round(np.sqrt(mse) / scale, 4)
+    out["ss_ref_noise"] = round(np.sqrt(noise) / scale, 4)
+    out["ss_mean_ratio"] = round(float(n.mean()) / scale, 4)
+    # Coverage: do both see the same cloud? (background pixels equal the sky in both)
+    bg = alpha < 1e-4
+    sky_ref = lum(0.5 * (ref["ss"][0] + ref["ss"][1]))[bg]
+    out["background_rel_error"] = round(
+        float(np.abs(lum(n_ss[..., :3])[bg] - sky_ref).mean() / max(sky_ref.mean(), 1e-9)), 4
+    )
+
+    # Looks after tone mapping (as the PNG shows them): mean cloud luminance, base/top.
+    opaque = alpha > 0.5
+    tm = {
+        "nephele_ss": aces(n_ss[..., :3] * gain),
+        "nephele_ms": aces(n_ms[..., :3] * gain),
+        "mitsuba_ss": aces(0.5 * (ref["ss"][0] + ref["ss"][1]) * gain),
+        "mitsuba_full": aces(0.5 * (ref["full"][0] + ref["full"][1]) * gain),
+    }
+    for k, v in tm.items():
+        l = lum(v)
+        out[f"mean_lum_{k}"] = round(float(l[opaque].mean()), 4)
+        out[f"base_top_{k}"] = round(base_top(l, opaque), 4)
+    print(json.dumps(out, indent=1))
+
+    if args.picture:
+        top = np.concatenate([tm["nephele_ss"], tm["mitsuba_ss"]], axis=1)
+        bottom = np.concatenate([tm["nephele_ms"], tm["mitsuba_full"]], axis=1)
+        sheet = srgb8(np.concatenate([top, bottom], axis=0))
+        mi.Bitmap(np.ascontiguousarray(sheet)).write(args.picture)
+
+
+if __name__ == "__main__":
+    main()
