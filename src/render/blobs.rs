@@ -323,8 +323,8 @@ impl Medium for BlobMedium {
     }
 
     #[inline]
-    fn light_depths(&self, x: Vec3A) -> [f32; 2] {
-        self.grid.as_ref().map_or([0.0, 0.0], |g| g.lookup(x))
+    fn light_depths(&self, x: Vec3A) -> [f32; 3] {
+        self.grid.as_ref().map_or([0.0; 3], |g| g.lookup(x))
     }
 
     fn step(&self) -> f32 {

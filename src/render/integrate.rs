@@ -218,8 +218,8 @@ fn march<M: Medium, const SHADE: bool>(
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());
             if SHADE {
-                let [tau_sun, tau_up] = medium.light_depths(x);
-                rgb += shading.in_scattered(&phase, tau_sun, tau_up) * (absorbed * shading.albedo);
+                let tau = medium.light_depths(x);
+                rgb += shading.in_scattered(&phase, tau) * (absorbed * shading.albedo);
             }
             depth_sum += t * absorbed;
             t_acc -= absorbed;

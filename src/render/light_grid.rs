@@ -1,9 +1,9 @@
-//! The per-frame light-transmittance grid: optical depth toward the sun and straight up on the
+//! The per-frame light-transmittance grid: optical depth toward the sun, straight up and down on the
 //! nodes of a regular grid over the cloud, so shading a march sample costs one trilinear lookup
 //! instead of a secondary march.
 //!
 //! In: extinction `σ_t` sampled on the grid nodes (filled by the medium) and the sun direction.
-//! Out: [`LightGrid::lookup`] → `[τ_sun, τ_up]` anywhere (clamped to the grid).
+//! Out: [`LightGrid::lookup`] → `[τ_sun, τ_up, τ_down]` anywhere (clamped to the grid).
 //!
 //! Each depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
@@ -55,12 +55,12 @@ impl GridShape {
     }
 }
 
-/// Optical depths `[toward the sun, straight up]` on the nodes of a [`GridShape`].
+/// Optical depths `[toward the sun, straight up, straight down]` on the nodes of a [`GridShape`].
 #[derive(Clone, Debug)]
 pub struct LightGrid {
     shape: GridShape,
     inv_h: f32,
-    tau: Vec<[f32; 2]>,
+    tau: Vec<[f32; 3]>,
 }
 
 impl LightGrid {
@@ -70,7 +70,13 @@ impl LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
         let sun = sweep(&shape, sigma, sun_dir);
         let up = sweep(&shape, sigma, Vec3A::NEG_Y);
-        let tau = sun.into_iter().zip(up).map(|(s, u)| [s, u]).collect();
+        let down = sweep(&shape, sigma, Vec3A::Y);
+        let tau = sun
+            .into_iter()
+            .zip(up)
+            .zip(down)
+            .map(|((s, u), d)| [s, u, d])
+            .collect();
         LightGrid {
             inv_h: 1.0 / shape.h,
             shape,
@@ -83,10 +89,10 @@ impl LightGrid {
         &self.shape
     }
 
-    /// Trilinear `[τ_sun, τ_up]` at `x` (clamped to the grid; the grid's border nodes are
+    /// Trilinear `[τ_sun, τ_up, τ_down]` at `x` (clamped to the grid; the grid's border nodes are
     /// outside the cloud, so points outside see the border values).
     #[inline]
-    pub fn lookup(&self, x: Vec3A) -> [f32; 2] {
+    pub fn lookup(&self, x: Vec3A) -> [f32; 3] {
         let [nx, ny, nz] = self.shape.dims;
         let g = ((x - self.shape.origin) * self.inv_h).clamp(
             Vec3A::ZERO,
@@ -98,8 +104,13 @@ impl LightGrid {
         let i00 = i + nx * (j + ny * k);
         let (sy, sz) = (nx, nx * ny);
         let t = &self.tau;
-        let lerp2 =
-            |a: [f32; 2], b: [f32; 2], s: f32| [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])];
+        let lerp2 = |a: [f32; 3], b: [f32; 3], s: f32| {
+            [
+                a[0] + s * (b[0] - a[0]),
+                a[1] + s * (b[1] - a[1]),
+                a[2] + s * (b[2] - a[2]),
+            ]
+        };
         let x00 = lerp2(t[i00], t[i00 + 1], w.x);
         let x10 = lerp2(t[i00 + sy], t[i00 + sy + 1], w.x);
         let x01 = lerp2(t[i00 + sz], t[i00 + sz + 1], w.x);
@@ -190,13 +201,14 @@ mod tests {
         for sun in [Vec3A::NEG_Y, Vec3A::new(-0.4, -0.8, -0.3).normalize()] {
             let grid = ball_grid(sun);
             // Centre: the chord toward the sun is the radius; likewise straight up.
-            let [ts, tu] = grid.lookup(Vec3A::ZERO);
+            let [ts, tu, td] = grid.lookup(Vec3A::ZERO);
+            assert!((td / 3.0 - 1.0).abs() < 0.04, "τ_down at centre {td}");
             assert!((ts / 3.0 - 1.0).abs() < 0.04, "τ_sun at centre {ts}");
             assert!((tu / 3.0 - 1.0).abs() < 0.04, "τ_up at centre {tu}");
             // The point half-way toward the sun, and the antipode (full diameter minus ½).
-            let [ts, _] = grid.lookup(-sun * 0.5);
+            let [ts, ..] = grid.lookup(-sun * 0.5);
             assert!((ts / 1.5 - 1.0).abs() < 0.06, "τ_sun half-way {ts}");
-            let [ts, _] = grid.lookup(sun * 0.5);
+            let [ts, ..] = grid.lookup(sun * 0.5);
             assert!((ts / 4.5 - 1.0).abs() < 0.04, "τ_sun far side {ts}");
             // Outside on the sunny side nothing is in the way.
             assert!(grid.lookup(-sun * 1.05)[0] < 0.05);

@@ -44,8 +44,8 @@ pub trait Medium: Sync {
         (sigma, sigma > 0.0)
     }
 
-    /// Optical depths `[toward the sun, straight up]` from `x`.
-    fn light_depths(&self, x: Vec3A) -> [f32; 2];
+    /// Optical depths `[toward the sun, straight up, straight down]` from `x`.
+    fn light_depths(&self, x: Vec3A) -> [f32; 3];
 
     /// Coarse march step through empty parts of the intervals (world units).
     fn step(&self) -> f32;
@@ -141,13 +141,13 @@ impl Medium for Homogeneous {
         self.sigma_t
     }
 
-    fn light_depths(&self, x: Vec3A) -> [f32; 2] {
+    fn light_depths(&self, x: Vec3A) -> [f32; 3] {
         let depth = |dir: Vec3A| {
             self.shape
                 .interval(x, dir)
                 .map_or(0.0, |(t0, t1)| self.sigma_t * (t1 - t0))
         };
-        [depth(-self.sun_dir), depth(Vec3A::Y)]
+        [depth(-self.sun_dir), depth(Vec3A::Y), depth(Vec3A::NEG_Y)]
     }
 
     fn step(&self) -> f32 {

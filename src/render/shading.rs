@@ -196,10 +196,6 @@ impl SkyDome {
     }
 }
 
-/// Ambient light reaching depth `τ_up` is attenuated by `exp(−AMBIENT_EXTINCTION·τ_up)`: diffuse
-/// sky light penetrates further than a collimated beam would.
-pub const AMBIENT_EXTINCTION: f32 = 0.35;
-
 /// Per-frame shading constants.
 #[derive(Clone, Debug)]
 pub struct Shading {
@@ -215,8 +211,10 @@ pub struct Shading {
     pub octaves: u32,
     /// Sky light from above (before occlusion).
     pub sky_up: Vec3A,
-    /// Ground light from below (unoccluded, weak).
+    /// Ground light from below (before occlusion).
     pub sky_down: Vec3A,
+    /// `b^(octaves−1)`: the last octave's contribution weight.
+    ms_weight_last: f32,
 }
 
 /// Upper bound on the multiple-scattering octaves.
@@ -229,18 +227,20 @@ impl Shading {
         let sun = &settings.sun;
         let dome = SkyDome::new(&settings.sky, sun);
         let tint = SkyDome::sun_tint(&settings.sky, sun);
+        let octaves = if settings.cloud.multiple_scattering {
+            settings.quality.ms_octaves.clamp(1, MAX_OCTAVES)
+        } else {
+            1
+        };
         Shading {
             sun_dir: Vec3A::from(sun.travel_dir()),
             sun_radiance: Vec3A::from(sun.color * sun.intensity * tint),
             albedo: settings.cloud.albedo.clamp(0.0, 1.0),
             g: settings.cloud.phase_g.clamp(-0.99, 0.99),
-            octaves: if settings.cloud.multiple_scattering {
-                settings.quality.ms_octaves.clamp(1, MAX_OCTAVES)
-            } else {
-                1
-            },
+            octaves,
             sky_up: Vec3A::from(dome.upper_mean()),
             sky_down: Vec3A::from(dome.lower_mean()),
+            ms_weight_last: (1..octaves).fold(1.0, |b, _| b * MS_CONTRIBUTION),
         }
     }
 
@@ -253,35 +253,49 @@ impl Shading {
         let (mut b, mut g) = (1.0, self.g);
         for wi in w.iter_mut().take(self.octaves as usize) {
             *wi = b * cloud_phase(mu, g);
-            b *= 0.5;
-            g *= 0.5;
+            b *= MS_CONTRIBUTION;
+            g *= MS_ANISOTROPY;
         }
         w
     }
 
-    /// In-scattered radiance per unit scattering coefficient at a point with optical depth
-    /// `tau_sun` toward the sun and `tau_up` straight up, for a ray with phase weights `w`.
+    /// In-scattered radiance per unit scattering coefficient at a point with optical depths
+    /// `tau = [τ_sun, τ_up, τ_down]`, for a ray with phase weights `w`.
+    ///
+    /// Octave `i` (0 = single scattering) sees the extinction scaled by `a^i` (`a = ½`) and
+    /// contributes with `b^i` ([`MS_CONTRIBUTION`]): the sun through its phase weight, the sky
+    /// isotropically — half the sphere's light from the sky above through `τ_up`, half from the
+    /// ground below through `τ_down`.
     #[inline]
-    pub fn in_scattered(
-        &self,
-        w: &[f32; MAX_OCTAVES as usize],
-        tau_sun: f32,
-        tau_up: f32,
-    ) -> Vec3A {
-        // Octave i sees extinction scaled by 2^−i: T_i = exp(−τ/2^i). Start from the last octave
-        // and square upward (one exp for all octaves).
+    pub fn in_scattered(&self, w: &[f32; MAX_OCTAVES as usize], tau: [f32; 3]) -> Vec3A {
+        // exp(−τ·2^−i) for i = n−1 first, then squared down to i = 0: one exp per depth.
         let n = self.octaves as usize;
-        let mut t = (-tau_sun / (1u32 << (n - 1)) as f32).exp();
-        let mut sun = 0.0;
+        let first = 1.0 / (1u32 << (n - 1)) as f32;
+        let (mut ts, mut tu, mut td) = (
+            (-tau[0] * first).exp(),
+            (-tau[1] * first).exp(),
+            (-tau[2] * first).exp(),
+        );
+        let (mut sun, mut up, mut down) = (0.0, 0.0, 0.0);
+        let mut b = self.ms_weight_last;
         for i in (0..n).rev() {
-            sun += w[i] * t;
-            t *= t;
+            sun += w[i] * ts;
+            up += b * tu;
+            down += b * td;
+            b /= MS_CONTRIBUTION;
+            ts *= ts;
+            tu *= tu;
+            td *= td;
         }
-        // Isotropic ambient: sky from above occluded by the cloud above, ground from below.
-        let amb = self.sky_up * (-AMBIENT_EXTINCTION * tau_up).exp() + self.sky_down * 0.5;
-        self.sun_radiance * sun + amb * 0.5
+        self.sun_radiance * sun + (self.sky_up * up + self.sky_down * down) * 0.5
     }
 }
+
+/// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
+/// calibrated against Mitsuba's full transport (README, `tests/mitsuba.rs`).
+pub const MS_CONTRIBUTION: f32 = 0.5;
+/// Anisotropy factor `c` of each further octave.
+pub const MS_ANISOTROPY: f32 = 0.5;
 
 #[cfg(test)]
 mod tests {
