@@ -241,7 +241,7 @@ fn frame_hash(f: &nephele::render::Frame) -> u64 {
 
 #[test]
 fn seeded_frame_is_pinned_and_thread_count_independent() {
-    let blobs = test_cloud(40, 3);
+    let blobs = test_cloud(80, 3);
     let s = settings(64, 36, Quality::preview());
     let render = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
@@ -257,8 +257,12 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
         covered > 100,
         "the cloud must cover part of the frame ({covered})"
     );
-    // Another frame index changes the jitter, hence the bits.
-    assert_ne!(frame_hash(&one), frame_hash(&render_frame(&s, &blobs)));
+    // The jitter is fixed per pixel: the same blobs give the same bits (no shimmer in holds);
+    // another seed changes them.
+    assert_eq!(frame_hash(&one), frame_hash(&render_frame(&s, &blobs)));
+    let mut other = s.clone();
+    other.seed += 1;
+    assert_ne!(frame_hash(&one), frame_hash(&render_frame(&other, &blobs)));
     assert_eq!(
         frame_hash(&one),
         PINNED,
@@ -268,7 +272,7 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
 }
 
 /// Hash of the 64×36 frame above (update deliberately when the renderer's output changes).
-const PINNED: u64 = 0x7d3e_3020_0fa7_8c39;
+const PINNED: u64 = 0x6340_204e_943a_7751;
 
 #[test]
 fn exr_reads_back_with_channels_and_values() {
@@ -567,4 +571,117 @@ fn preview_cli_writes_frames_and_gif() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent/model.ron"));
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Fraction of the final frame's alpha (builtin scenes, 160×90) inside the target mesh's
+/// silhouette dilated by 1 % of the image diagonal: density only where the model's surface is.
+#[test]
+fn final_frame_alpha_lies_inside_the_target_silhouette() {
+    use nephele::scene::{RenderOptions, Target, load_scene, load_target, shot};
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for name in [
+        "duck-diffusion",
+        "duck-aggregation",
+        "torus-knot-aggregation",
+        "bunny-aggregation",
+        "horse-diffusion",
+    ] {
+        let path = repo.join("scenes").join(format!("{name}.ron"));
+        let scene = match load_scene(&path) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("skipping {name}: {e}");
+                continue;
+            }
+        };
+        let Target::Fit { mesh, .. } = &scene.file.target else {
+            continue;
+        };
+        let mesh = nephele::mesh::load(mesh).unwrap().mesh;
+        let mut setup = shot::shot_setup(&scene, &RenderOptions::default()).unwrap();
+        (setup.width, setup.height) = (160, 90);
+        let cache = std::env::temp_dir().join(format!("nephele-silhouette-{name}"));
+        let (model, _) = load_target(&scene, &cache).unwrap();
+        let prep = shot::prepare(&scene, model).unwrap();
+        let k = setup.total - 1;
+        let s = shot::frame_settings(&scene, &prep, &setup, k, false);
+        let frame = render_frame(&s, &prep.plan.frame(k as usize));
+        let inside = silhouette(&s, &mesh, 0.01 * (160f32.hypot(90.0)));
+        // The test can fail: the silhouette is a real part of the frame, not all of it.
+        let covered = inside.iter().filter(|&&b| b).count() as f32 / inside.len() as f32;
+        assert!(covered > 0.02 && covered < 0.7, "{name}: silhouette covers {covered}");
+        let total: f32 = frame.alpha.iter().sum();
+        let kept: f32 = (0..frame.alpha.len())
+            .filter(|&i| inside[i])
+            .map(|i| frame.alpha[i])
+            .sum();
+        let share = kept / total;
+        eprintln!("{name}: {:.2} % of the alpha inside the silhouette", 100.0 * share);
+        assert!(share >= 0.99, "{name}: only {share} of the alpha is inside");
+    }
+}
+
+/// Pixels whose centre is within `dilate` pixels of the projected mesh.
+fn silhouette(s: &RenderSettings, mesh: &nephele::mesh::Mesh, dilate: f32) -> Vec<bool> {
+    let (w, h) = (s.width as usize, s.height as usize);
+    let cam = nephele::render::camera::CameraRays::new(&s.camera, s.width, s.height);
+    // Image position of a world point: find (px, py) whose ray direction matches.
+    let centre = cam.dir(0.5 * w as f32, 0.5 * h as f32);
+    let dx = cam.dir(0.5 * w as f32 + 1.0, 0.5 * h as f32) - centre;
+    let dy = cam.dir(0.5 * w as f32, 0.5 * h as f32 + 1.0) - centre;
+    let project = |p: glam::DVec3| {
+        let v = Vec3A::from(p.as_vec3()) - cam.position;
+        let v = v / v.dot(centre);
+        let r = v - centre;
+        (
+            0.5 * w as f32 + r.dot(dx) / dx.length_squared(),
+            0.5 * h as f32 + r.dot(dy) / dy.length_squared(),
+        )
+    };
+    let pts: Vec<(f32, f32)> = mesh.positions.iter().map(|&p| project(p)).collect();
+    let mut cover = vec![false; w * h];
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| pts[i as usize]);
+        let (x0, x1) = (a.0.min(b.0).min(c.0), a.0.max(b.0).max(c.0));
+        let (y0, y1) = (a.1.min(b.1).min(c.1), a.1.max(b.1).max(c.1));
+        let cross = |p: (f32, f32), q: (f32, f32), r: (f32, f32)| {
+            (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0)
+        };
+        let area = cross(a, b, c);
+        for y in (y0.floor().max(0.0) as usize)..=(y1.ceil().min(h as f32 - 1.0) as usize) {
+            for x in (x0.floor().max(0.0) as usize)..=(x1.ceil().min(w as f32 - 1.0) as usize) {
+                let p = (x as f32 + 0.5, y as f32 + 0.5);
+                let (u, v, z) = (cross(b, c, p), cross(c, a, p), cross(a, b, p));
+                let inside = if area >= 0.0 {
+                    u >= 0.0 && v >= 0.0 && z >= 0.0
+                } else {
+                    u <= 0.0 && v <= 0.0 && z <= 0.0
+                };
+                if inside {
+                    cover[y * w + x] = true;
+                }
+            }
+        }
+    }
+    let r = dilate.ceil() as i64;
+    let mut out = vec![false; w * h];
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if !cover[(y * w as i64 + x) as usize] {
+                continue;
+            }
+            for oy in -r..=r {
+                for ox in -r..=r {
+                    let (qx, qy) = (x + ox, y + oy);
+                    if (ox * ox + oy * oy) as f32 <= dilate * dilate
+                        && (0..w as i64).contains(&qx)
+                        && (0..h as i64).contains(&qy)
+                    {
+                        out[(qy * w as i64 + qx) as usize] = true;
+                    }
+                }
+            }
+        }
+    }
+    out
 }

@@ -293,7 +293,7 @@ impl Shading {
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
 /// calibrated against Mitsuba's full transport (README, `tests/mitsuba.rs`).
-pub const MS_CONTRIBUTION: f32 = 0.5;
+pub const MS_CONTRIBUTION: f32 = 0.8;
 /// Anisotropy factor `c` of each further octave.
 pub const MS_ANISOTROPY: f32 = 0.5;
 
