@@ -143,6 +143,20 @@ fn write_inputs(
     let k = frame - 1;
     let blobs = prep.plan.frame(k as usize);
     let mut s = shot::frame_settings(&scene, &prep, &setup, k, false);
+    if let Ok(q) = std::env::var("NEPHELE_MITSUBA_QUALITY") {
+        // Experiments: "shadow_grid,optical_step,samples".
+        let v: Vec<f32> = q.split(',').map(|x| x.parse().unwrap()).collect();
+        s.quality.shadow_grid = v[0] as u32;
+        s.quality.optical_step = v[1];
+        s.quality.samples = v[2] as u32;
+    }
+    if std::env::var("NEPHELE_MITSUBA_BLACK_SKY").is_ok() {
+        // Not exactly 0: Mitsuba's envmap sampling needs some light.
+        s.sky = nephele::render::Sky::Gradient {
+            zenith: glam::Vec3::splat(1e-4),
+            horizon: glam::Vec3::splat(1e-4),
+        };
+    }
     std::fs::create_dir_all(dir).unwrap();
     let mut times = [0.0; 2];
     for (idx, ms) in [(0, false), (1, true)] {
@@ -198,13 +212,19 @@ fn repo() -> PathBuf {
 }
 
 /// Run the comparison script; returns its stdout (JSON).
-fn compare(py: &str, dir: &Path, spp: u32, picture: Option<&Path>) -> String {
+fn compare(py: &str, dir: &Path, spp: u32, picture: Option<&Path>, reuse: bool) -> String {
     let mut cmd = Command::new(py);
     cmd.arg(repo().join("tools/mitsuba_compare.py"))
         .arg(dir)
         .args(["--spp", &spp.to_string()]);
     if let Some(p) = picture {
         cmd.arg("--picture").arg(p);
+    }
+    if reuse {
+        cmd.arg("--reuse");
+    }
+    if std::env::var("NEPHELE_MITSUBA_ONLY_SS").is_ok() {
+        cmd.arg("--only-ss");
     }
     let out = cmd.output().unwrap();
     assert!(
@@ -230,7 +250,7 @@ fn single_scattering_matches_mitsuba() {
     };
     let dir = std::env::temp_dir().join(format!("nephele-mitsuba-{}", std::process::id()));
     write_inputs(&repo().join("scenes/duck-diffusion.ron"), 96, (160, 90), 96, &dir);
-    let json = compare(&py, &dir, 64, None);
+    let json = compare(&py, &dir, 64, None, false);
     eprintln!("{json}");
     let rmse = number(&json, "ss_rel_rmse");
     // A small, noisy run: the full run (README) gives the figure quoted there.
@@ -255,10 +275,12 @@ fn mitsuba_full_comparison() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(256);
-    let dir = std::env::temp_dir().join("nephele-mitsuba-full");
+    let dir = std::env::temp_dir().join(
+        std::env::var("NEPHELE_MITSUBA_DIR").unwrap_or_else(|_| "nephele-mitsuba-full".into()),
+    );
     let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), 256, &dir);
     eprintln!("nephele: single scattering {ss:.3} s, with the MS approximation {ms:.3} s");
     let picture = repo().join("renders/mitsuba-comparison.png");
-    let json = compare(&py, &dir, spp, Some(&picture));
+    let json = compare(&py, &dir, spp, Some(&picture), std::env::var("NEPHELE_MITSUBA_REUSE").is_ok());
     println!("{json}");
 }

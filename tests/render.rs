@@ -685,3 +685,66 @@ fn silhouette(s: &RenderSettings, mesh: &nephele::mesh::Mesh, dilate: f32) -> Ve
     }
     out
 }
+
+/// The light grid's transmittance toward the sun against an exact march, at points inside the
+/// finished duck where the density is positive (weighted by density).
+#[test]
+#[ignore = "diagnostic: light-grid accuracy"]
+fn light_grid_against_exact_march() {
+    use nephele::render::Medium;
+    use nephele::render::camera::{Frustum, Ray};
+    let model = {
+        let mesh = nephele::mesh::load("builtin:duck").unwrap();
+        let cfg = nephele::pipeline::FitConfig {
+            blobs: 300,
+            ..Default::default()
+        };
+        nephele::pipeline::fit(&cfg, &mesh).model
+    };
+    for res in [64u32, 128, 256] {
+        let mut s = settings(64, 36, Quality::final_frame());
+        s.quality.shadow_grid = res;
+        s.length_scale = model.source.bounds.diagonal() as f32;
+        let m = BlobMedium::new(&s, &model.blobs);
+        let sun = Vec3A::from(s.sun.travel_dir());
+        let (lo, hi) = m.bounds().unwrap();
+        let all = Frustum {
+            apex: lo,
+            forward: Vec3A::ZERO,
+            planes: [Vec3A::ZERO; 4],
+        };
+        let mut sc = m.scratch();
+        m.begin_tile(&all, &mut sc);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let (mut te, mut tg, mut wsum, mut n) = (0.0f64, 0.0f64, 0.0f64, 0);
+        let step = s.length_scale / 4000.0;
+        while n < 3000 {
+            let p = lo + (hi - lo) * Vec3A::new(rng.random(), rng.random(), rng.random());
+            // density at p: a ray through p
+            let ray = Ray { origin: p, dir: -sun };
+            m.begin_ray(&ray, &mut sc);
+            let ivs = m.intervals(&sc).to_vec();
+            if !ivs.iter().any(|iv| iv[0] <= 0.0) {
+                continue;
+            }
+            let sigma0 = m.extinction(&sc, 0.0, p);
+            if sigma0 <= 0.0 {
+                continue;
+            }
+            let mut tau = 0.0f64;
+            for iv in &ivs {
+                let mut t = iv[0] + 0.5 * step;
+                while t < iv[1] {
+                    tau += m.extinction(&sc, t, ray.at(t)) as f64 * step as f64;
+                    t += step;
+                }
+            }
+            let g = m.light_depths(p)[0] as f64;
+            te += sigma0 as f64 * (-tau).exp();
+            tg += sigma0 as f64 * (-g).exp();
+            wsum += sigma0 as f64;
+            n += 1;
+        }
+        println!("grid {res}: mean T exact {:.4}, grid {:.4}", te / wsum, tg / wsum);
+    }
+}

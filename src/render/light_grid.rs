@@ -119,6 +119,9 @@ impl LightGrid {
     }
 }
 
+/// Shift of the stored depths toward the light, in cells (see [`sweep`]).
+pub const SURFACE_SHIFT: f32 = 0.25;
+
 /// Optical depth from every node toward the light (light travelling along unit `dir`).
 fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     let d = [dir.x, dir.y, dir.z];
@@ -171,6 +174,13 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
                 tau[idx] = tq + 0.5 * (sigma[idx] + sq) * ds;
             }
         }
+    }
+    // Store the depth a quarter cell toward the light: trilinear interpolation of a depth
+    // that is 0 outside and grows linearly inside overestimates it just inside the surface;
+    // this shift cancels that on average (measured against an exact march on the duck: mean
+    // sunlit transmittance 7 % low without it, within 1 % with it, at 128 cells).
+    for (t, &s) in tau.iter_mut().zip(sigma) {
+        *t = (*t - SURFACE_SHIFT * s * shape.h).max(0.0);
     }
     tau
 }

@@ -48,7 +48,7 @@ const GROUND: f32 = 0.35;
 const HW_SCALE: f32 = 1.0 / 60.0 / HW_ZENITH_LUMINANCE_45;
 
 /// Zenith luminance of the `hw-skymodel` sky for turbidity 3, ground albedo 0.3, sun 45° high.
-const HW_ZENITH_LUMINANCE_45: f32 = 1.0;
+const HW_ZENITH_LUMINANCE_45: f32 = 4.357;
 
 /// Optical depth of the clear atmosphere at the zenith for R, G, B (Rayleigh at 680, 550,
 /// 440 nm, plus aerosol growing with turbidity, per unit turbidity above 1).
@@ -287,9 +287,14 @@ impl Shading {
             tu *= tu;
             td *= td;
         }
-        self.sun_radiance * sun + (self.sky_up * up + self.sky_down * down) * 0.5
+        self.sun_radiance * sun + (self.sky_up * up + self.sky_down * down) * (0.5 * SKY_PHASE)
     }
 }
+
+/// Share of the isotropic sky estimate that a forward-scattering cloud (`g ≈ 0.75`) turns
+/// toward the eye: its in-scattered sky light comes mostly from the sky behind it, seen through
+/// it. Calibrated against Mitsuba's single scattering of the same sky (README).
+pub const SKY_PHASE: f32 = 0.64;
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
 /// calibrated against Mitsuba's full transport (README, `tests/mitsuba.rs`).
