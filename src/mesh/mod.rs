@@ -9,6 +9,7 @@ pub mod io;
 pub mod marching_cubes;
 pub mod sample;
 pub mod simplify;
+pub mod winding;
 
 use std::path::{Path, PathBuf};
 
