@@ -135,7 +135,7 @@ fn run_one(
             ..FitConfig::default()
         };
         let t = Instant::now();
-        let out = fit(&cfg, &loaded);
+        let out = fit(&cfg, &loaded).map_err(|e| e.to_string())?;
         let fit_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let eval_cfg = EvalConfig {

@@ -24,7 +24,8 @@ fn optimisation_lowers_the_objective() {
     let faithful = fit(
         &small(Optimisation::Faithful(FaithfulConfig::default())),
         &duck,
-    );
+    )
+    .unwrap();
     let s = &faithful.stats;
     assert!(
         s.objective_after < 0.01 * s.objective_before,
@@ -32,7 +33,7 @@ fn optimisation_lowers_the_objective() {
         s.objective_before,
         s.objective_after
     );
-    let full = fit(&small(FitConfig::default().optimisation), &duck);
+    let full = fit(&small(FitConfig::default().optimisation), &duck).unwrap();
     assert!(
         full.stats.objective_after < s.objective_after,
         "full {} is not below faithful {}",
@@ -61,8 +62,8 @@ fn inside_out_copy_fits_the_same() {
         loaded.warnings
     );
     let cfg = small(Optimisation::Faithful(FaithfulConfig::default()));
-    let a = fit(&cfg, &original).model;
-    let b = fit(&cfg, &loaded).model;
+    let a = fit(&cfg, &original).unwrap().model;
+    let b = fit(&cfg, &loaded).unwrap().model;
     assert_eq!(a.blobs, b.blobs);
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -108,7 +109,7 @@ fn max_error_mode_adds_blobs_until_the_target() {
         blobs: 8,
         ..small(Optimisation::Faithful(FaithfulConfig::default()))
     };
-    let (out, rounds) = nephele::pipeline::fit_to_error(&cfg, &knot, TARGET, 200);
+    let (out, rounds) = nephele::pipeline::fit_to_error(&cfg, &knot, TARGET, 200).unwrap();
     assert!(rounds.len() >= 2, "{rounds:?}");
     assert!(
         rounds.windows(2).all(|w| w[1].blobs > w[0].blobs),
@@ -146,6 +147,7 @@ fn adaptive_budget_spends_the_freed_blobs_where_the_model_falls_short() {
             },
             &duck,
         )
+        .unwrap()
     };
     let (kept, spent) = (with(0), with(3));
     let (before, after) = (
@@ -176,7 +178,7 @@ fn bunny_full_fit_halves_the_faithful_error_and_beats_a_simplified_mesh() {
     let Some(bunny) = shared_models::load("bunny.off") else {
         return;
     };
-    let out = fit(&FitConfig::default(), &bunny);
+    let out = fit(&FitConfig::default(), &bunny).unwrap();
     let surface = nephele::blobby::polygonize::polygonize(&out.model.field(), 200);
     let r = compare(&bunny.mesh, &surface, &MetroConfig::default());
     let mean = r.a_to_b.mean_pct.max(r.b_to_a.mean_pct);
