@@ -65,7 +65,9 @@ impl FitConfig {
     /// [`FitConfig::MIN_SAMPLES`] samples.
     pub fn validate(&self) -> Result<(), FitError> {
         let bad = |what: &str, min: usize, got: usize| {
-            Err(FitError::Config(format!("{what} must be at least {min}, got {got}")))
+            Err(FitError::Config(format!(
+                "{what} must be at least {min}, got {got}"
+            )))
         };
         if self.blobs < 1 {
             return bad("blobs", 1, self.blobs);
@@ -130,7 +132,11 @@ pub const ENCLOSED: f64 = 0.6;
 fn max_winding_behind(solid: &WindingNumber, samples: &SurfaceSamples, depth: f64) -> f64 {
     use rayon::prelude::*;
     let mut max = f64::NEG_INFINITY;
-    for (p, n) in samples.positions.chunks(1024).zip(samples.normals.chunks(1024)) {
+    for (p, n) in samples
+        .positions
+        .chunks(1024)
+        .zip(samples.normals.chunks(1024))
+    {
         let chunk = p
             .par_iter()
             .zip(n)

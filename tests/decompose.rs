@@ -7,8 +7,8 @@ use glam::{DQuat, DVec3};
 use nephele::decompose::{self, Candidate, DecomposeConfig, ObstacleShift, Primitive};
 use nephele::geometry::Aabb;
 use nephele::mesh::Mesh;
-use nephele::mesh::winding::WindingNumber;
 use nephele::mesh::sample::{SurfaceSamples, sample_surface};
+use nephele::mesh::winding::WindingNumber;
 
 /// Icosphere subdivided `level` times, mapped by `f`.
 fn sphere_mesh(level: usize, f: impl Fn(DVec3) -> DVec3) -> Mesh {

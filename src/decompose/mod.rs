@@ -192,7 +192,10 @@ pub fn grow_candidates(
         parry3d_f64::shape::TriMeshFlags::empty(),
     )
     .ok();
-    let guard = distance.as_ref().map(|d| SolidGuard { inside, distance: d });
+    let guard = distance.as_ref().map(|d| SolidGuard {
+        inside,
+        distance: d,
+    });
     seeds
         .par_iter()
         .map_init(Vec::new, |order, &v| {
@@ -270,7 +273,12 @@ fn leaves_mesh(guard: Option<&SolidGuard>, e: &Ellipsoid, tolerance: f64) -> boo
     axes.into_iter().chain(corners).any(|local| {
         let x = e.center + e.rotation * (local * e.semi_axes);
         !guard.inside.inside(x)
-            && guard.distance.project_local_point(x, false).point.distance(x) > tolerance
+            && guard
+                .distance
+                .project_local_point(x, false)
+                .point
+                .distance(x)
+                > tolerance
     })
 }
 

@@ -64,12 +64,7 @@ pub struct Optimised {
 /// blobs); the full problem on every blob; the drop of the blobs the passes switched off; the
 /// adaptive budget (their count re-spent at the worst shortfalls from the unused candidates);
 /// the drop of negligible blobs. Deterministic at any thread count.
-pub fn optimise(
-    how: &Optimisation,
-    target: &Target,
-    start: &Start,
-    threshold: f64,
-) -> Optimised {
+pub fn optimise(how: &Optimisation, target: &Target, start: &Start, threshold: f64) -> Optimised {
     let mut blobs: Vec<Blob> = start
         .selected
         .iter()
@@ -85,7 +80,10 @@ pub fn optimise(
         Optimisation::Full(f, full) => {
             let (before, _) = optimise_faithful(f, &mut blobs, points, threshold);
             full_steps(full, target, start, &mut blobs, threshold);
-            (before, objective(&BlobField::new(&blobs, threshold), points))
+            (
+                before,
+                objective(&BlobField::new(&blobs, threshold), points),
+            )
         }
     };
     Optimised {
@@ -105,7 +103,14 @@ fn full_steps(
 ) {
     let diag = target.mesh.bounds().diagonal();
     let far = far_field_points(target.mesh, target.solid, 40);
-    let problem = FullProblem::new(cfg, target.samples, Some(target.solid), &far, diag, threshold);
+    let problem = FullProblem::new(
+        cfg,
+        target.samples,
+        Some(target.solid),
+        &far,
+        diag,
+        threshold,
+    );
     let mut anchors = blobs.clone();
     problem.optimise(blobs, &anchors, cfg.sweeps, None);
     // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them, keeping the
