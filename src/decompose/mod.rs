@@ -1,4 +1,5 @@
-//! Ellipsoid decomposition (paper §3, after Bischoff & Kobbelt 2002; DESIGN.md §3):
+//! Ellipsoid decomposition (paper §3, after Bischoff & Kobbelt 2002; docs/ARCHITECTURE.md,
+//! Decomposition):
 //! grow one candidate ellipsoid per seed vertex against shifted surface samples (obstacles),
 //! then pick a covering subset by greedy weighted voxel coverage.
 //!
@@ -8,7 +9,7 @@
 //! `grow` (the three growth stages of one seed), `quadric` and `eigen` (symmetric quadrics →
 //! ellipsoids), `select` (voxel rasterisation and lazy greedy coverage).
 //!
-//! Seed placement (DESIGN.md §3 pitfalls): obstacles are the samples shifted by `σ·ε·D` along
+//! Seed placement: obstacles are the samples shifted by `σ·ε·D` along
 //! their smooth normal (`σ` = +1 outward, −1 inward, 0 none); the seed is the simplified-mesh
 //! vertex moved by `(σ − 1)·ε·D` along its vertex normal, i.e. always `ε·D` *inside* the
 //! obstacle layer. With the outward default the seed stays on the mesh. That gap keeps the
