@@ -63,7 +63,7 @@ pub struct Optimised {
 /// order: the faithful pass (the paper's `(A, B)` fit, which also switches off redundant
 /// blobs); the full problem on every blob; the drop of the blobs the passes switched off; the
 /// adaptive budget (their count re-spent at the worst shortfalls from the unused candidates);
-/// the drop of negligible blobs. Deterministic at any thread count.
+/// final sweeps over every blob; the drop of negligible blobs. Deterministic at any thread count.
 pub fn optimise(how: &Optimisation, target: &Target, start: &Start, threshold: f64) -> Optimised {
     let mut blobs: Vec<Blob> = start
         .selected
@@ -133,5 +133,8 @@ fn full_steps(
         &mut used,
         &target.samples.positions,
     );
+    // The budget re-fits only around the blobs it adds; a last pass over all lets the rest
+    // settle with them.
+    problem.optimise(blobs, &anchors, cfg.final_sweeps, None);
     drop_negligible(blobs, threshold);
 }
