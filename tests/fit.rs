@@ -316,13 +316,9 @@ fn adaptive_budget_spends_the_freed_blobs_where_the_model_falls_short() {
 /// `../shared/models`.
 #[test]
 fn bunny_full_fit_halves_the_faithful_error_and_beats_a_simplified_mesh() {
-    use nephele::eval::metro::{MetroConfig, compare};
-    let Some(bunny) = shared_models::load("bunny.off") else {
+    let Some((out, r)) = default_fit_and_metro("bunny.off") else {
         return;
     };
-    let out = fit(&FitConfig::default(), &bunny).unwrap();
-    let surface = nephele::blobby::polygonize::polygonize(&out.model.field(), 200);
-    let r = compare(&bunny.mesh, &surface, &MetroConfig::default());
     let mean = r.a_to_b.mean_pct.max(r.b_to_a.mean_pct);
     eprintln!(
         "bunny full 300: {} blobs, mean {mean:.3} %, max {:.3} % of D",
@@ -343,13 +339,9 @@ fn bunny_full_fit_halves_the_faithful_error_and_beats_a_simplified_mesh() {
 /// direction measures the caps). Skips without `../shared/models`.
 #[test]
 fn open_bunny_scan_fits_within_the_one_sided_bars() {
-    use nephele::eval::metro::{MetroConfig, compare};
-    let Some(scan) = shared_models::load("bunny-scan-open.obj") else {
+    let Some((out, r)) = default_fit_and_metro("bunny-scan-open.obj") else {
         return;
     };
-    let out = fit(&FitConfig::default(), &scan).unwrap();
-    let surface = nephele::blobby::polygonize::polygonize(&out.model.field(), 200);
-    let r = compare(&scan.mesh, &surface, &MetroConfig::default());
     eprintln!(
         "open bunny scan 300: {} blobs, mesh -> model mean {:.3} % max {:.3} % of D",
         out.model.blobs.len(),
@@ -362,4 +354,41 @@ fn open_bunny_scan_fits_within_the_one_sided_bars() {
         r.a_to_b.mean_pct
     );
     assert!(r.a_to_b.max_pct <= 2.0, "max {:.3} % D", r.a_to_b.max_pct);
+}
+
+/// The shared model `file` fitted with the defaults, and Metro of it against its polygonized
+/// model (resolution 200); `None` when `../shared/models` is absent.
+fn default_fit_and_metro(
+    file: &str,
+) -> Option<(nephele::pipeline::FitOutput, nephele::eval::MetroReport)> {
+    use nephele::eval::metro::{MetroConfig, compare};
+    let loaded = shared_models::load(file)?;
+    let out = fit(&FitConfig::default(), &loaded).unwrap();
+    let surface = nephele::blobby::polygonize::polygonize(&out.model.field(), 200);
+    let r = compare(&loaded.mesh, &surface, &MetroConfig::default());
+    Some((out, r))
+}
+
+#[test]
+fn cli_refuses_a_lone_sheet_and_writes_nothing() {
+    let dir = std::env::temp_dir().join(format!("nephele-sheet-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("sheet.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n",
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .args(["fit", "sheet.obj", "-o", "sheet.ron"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("sheet.obj") && err.contains("encloses no volume"),
+        "{err}"
+    );
+    assert!(!dir.join("sheet.ron").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

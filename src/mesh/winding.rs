@@ -123,6 +123,34 @@ impl WindingNumber {
     }
 }
 
+/// Which way a mesh's faces are wound, judged by its winding number: the sum over sample faces
+/// (every face, or an even stride of at most `probes`) of `area·(w(c − δn) + w(c + δn))`, with
+/// `c` the face's centroid, `n` its unit normal and `δ` a thousandth of the diagonal. Across an
+/// outward face `w` steps from 1 (behind) to 0 (in front), across an inward one from 0 to −1,
+/// so the sum is positive for outward faces. For a closed mesh its sign is that of the signed
+/// volume (the integral of `w`); for an open scan or a soup it still follows the majority of
+/// the surface, where the signed volume depends on the origin.
+pub fn orientation(mesh: &Mesh, solid: &WindingNumber, probes: usize) -> f64 {
+    let delta = 1e-3 * mesh.bounds().diagonal();
+    let stride = mesh.triangles.len().div_ceil(probes.max(1)).max(1);
+    let faces: Vec<usize> = (0..mesh.triangles.len()).step_by(stride).collect();
+    faces
+        .par_iter()
+        .map(|&f| {
+            let [a, b, c] = mesh.triangles[f].map(|v| mesh.positions[v as usize]);
+            let area_vector = 0.5 * (b - a).cross(c - a);
+            let area = area_vector.length();
+            if area == 0.0 {
+                return 0.0;
+            }
+            let (centroid, n) = ((a + b + c) / 3.0, area_vector / area);
+            area * (solid.at(centroid - delta * n) + solid.at(centroid + delta * n))
+        })
+        .collect::<Vec<f64>>()
+        .iter()
+        .sum()
+}
+
 /// Build the node over `tris[start..end]` (reordering them) and its subtree; returns its index.
 fn build(tris: &mut [[DVec3; 3]], start: usize, end: usize, nodes: &mut Vec<Node>) -> u32 {
     let slice = &tris[start..end];
@@ -219,6 +247,25 @@ mod tests {
             }
         }
         assert!(worst < 0.025, "hierarchical vs exact: {worst}");
+    }
+
+    #[test]
+    fn orientation_follows_the_winding_of_open_and_closed_meshes() {
+        let sphere = crate::mesh::load("builtin:sphere").unwrap().mesh;
+        let mut half = Mesh {
+            positions: sphere.positions.clone(),
+            triangles: sphere
+                .triangles
+                .iter()
+                .copied()
+                .filter(|t| t.iter().all(|&v| sphere.positions[v as usize].z >= -0.3))
+                .collect(),
+        };
+        for mesh in [sphere.clone(), half.clone()] {
+            assert!(orientation(&mesh, &WindingNumber::new(&mesh), 500) > 0.0);
+        }
+        half.flip_orientation();
+        assert!(orientation(&half, &WindingNumber::new(&half), 500) < 0.0);
     }
 
     #[test]
