@@ -609,14 +609,20 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
         let inside = silhouette(&s, &mesh, 0.01 * (160f32.hypot(90.0)));
         // The test can fail: the silhouette is a real part of the frame, not all of it.
         let covered = inside.iter().filter(|&&b| b).count() as f32 / inside.len() as f32;
-        assert!(covered > 0.02 && covered < 0.7, "{name}: silhouette covers {covered}");
+        assert!(
+            covered > 0.02 && covered < 0.7,
+            "{name}: silhouette covers {covered}"
+        );
         let total: f32 = frame.alpha.iter().sum();
         let kept: f32 = (0..frame.alpha.len())
             .filter(|&i| inside[i])
             .map(|i| frame.alpha[i])
             .sum();
         let share = kept / total;
-        eprintln!("{name}: {:.2} % of the alpha inside the silhouette", 100.0 * share);
+        eprintln!(
+            "{name}: {:.2} % of the alpha inside the silhouette",
+            100.0 * share
+        );
         assert!(share >= 0.99, "{name}: only {share} of the alpha is inside");
     }
 }
@@ -699,7 +705,7 @@ fn light_grid_against_exact_march() {
             blobs: 300,
             ..Default::default()
         };
-        nephele::pipeline::fit(&cfg, &mesh).model
+        nephele::pipeline::fit(&cfg, &mesh).unwrap().model
     };
     for res in [64u32, 128, 256] {
         let mut s = settings(64, 36, Quality::final_frame());
@@ -721,7 +727,10 @@ fn light_grid_against_exact_march() {
         while n < 3000 {
             let p = lo + (hi - lo) * Vec3A::new(rng.random(), rng.random(), rng.random());
             // density at p: a ray through p
-            let ray = Ray { origin: p, dir: -sun };
+            let ray = Ray {
+                origin: p,
+                dir: -sun,
+            };
             m.begin_ray(&ray, &mut sc);
             let ivs = m.intervals(&sc).to_vec();
             if !ivs.iter().any(|iv| iv[0] <= 0.0) {
@@ -745,6 +754,10 @@ fn light_grid_against_exact_march() {
             wsum += sigma0 as f64;
             n += 1;
         }
-        println!("grid {res}: mean T exact {:.4}, grid {:.4}", te / wsum, tg / wsum);
+        println!(
+            "grid {res}: mean T exact {:.4}, grid {:.4}",
+            te / wsum,
+            tg / wsum
+        );
     }
 }

@@ -163,9 +163,7 @@ impl BlobMedium {
         }
         radii.sort_by(f32::total_cmp);
         let typical = radii[radii.len() / 2];
-        let s = (settings.quality.step_scale * typical).clamp(length / 2000.0, length / 16.0);
-        eprintln!("step {} L", s / length);
-        std::env::var("NEPHELE_STEP").ok().and_then(|v| v.parse::<f32>().ok()).map_or(s, |v| v * length)
+        (settings.quality.step_scale * typical).clamp(length / 2000.0, length / 16.0)
     }
 
     /// Number of live blobs.

@@ -110,7 +110,7 @@ impl SkyDome {
     /// Sky radiance seen in direction `dir` (unit; linear RGB). Gradient: horizon → zenith
     /// above the horizon (square-root ramp in `dir.y`), horizon → dim ground below.
     /// Hosek–Wilkie: the model above the horizon; below, the horizon's radiance times the
-    /// ground albedo.
+    /// ground albedo and the ground factor (a dim ground, as for the gradient).
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         match self {
             SkyDome::Gradient { zenith, horizon } => {
@@ -137,7 +137,11 @@ impl SkyDome {
                     state.radiance(theta, gamma, Channel::G),
                     state.radiance(theta, gamma, Channel::B),
                 ) * *scale;
-                if dir.y >= 0.0 { c } else { c * *ground }
+                if dir.y >= 0.0 {
+                    c
+                } else {
+                    c * (*ground * GROUND)
+                }
             }
         }
     }

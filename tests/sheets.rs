@@ -1,0 +1,65 @@
+//! Picture sheets of every builtin scene (README): an early, a middle and the final frame side
+//! by side in `renders/sheet-<scene>.png`, and the golden-hour backlit frame
+//! `renders/duck-golden-hour.png`. Scenes whose target is unavailable (bunny and horse need
+//! `../shared/models`) are skipped with a message. Re-run after changing the look or the
+//! animation:
+//!
+//! `cargo test --release --test sheets -- --ignored --nocapture`
+
+use std::path::Path;
+
+use nephele::render::{output, render_frame};
+use nephele::scene::{RenderOptions, load_scene, load_target, shot};
+
+/// Frames `frames` (1-based) of `scene`, tone-mapped as the PNG frames are.
+fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::RgbImage>> {
+    let scene = load_scene(scene)
+        .map_err(|e| eprintln!("skipping: {e}"))
+        .ok()?;
+    let setup = shot::shot_setup(&scene, &RenderOptions::default()).ok()?;
+    let cache = std::env::temp_dir().join("nephele-sheets");
+    let (model, _) = load_target(&scene, &cache)
+        .map_err(|e| eprintln!("skipping: {e}"))
+        .ok()?;
+    let prep = shot::prepare(&scene, model).unwrap();
+    Some(
+        frames(setup.total)
+            .into_iter()
+            .map(|f| {
+                let k = f - 1;
+                let s = shot::frame_settings(&scene, &prep, &setup, k, false);
+                output::tonemapped(&render_frame(&s, &prep.plan.frame(k as usize)), &s)
+            })
+            .collect(),
+    )
+}
+
+#[test]
+#[ignore = "writes the picture sheets into renders/: see the module doc"]
+fn sheets() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for name in [
+        "duck-diffusion",
+        "duck-aggregation",
+        "torus-knot-aggregation",
+        "bunny-aggregation",
+        "horse-diffusion",
+    ] {
+        let pick = |n: u32| vec![(n / 5).max(1), (n * 11 / 20).max(1), n];
+        let Some(images) = frames(&repo.join(format!("scenes/{name}.ron")), &pick) else {
+            continue;
+        };
+        let (w, h) = images[0].dimensions();
+        let mut sheet = image::RgbImage::new(w * images.len() as u32, h);
+        for (i, img) in images.iter().enumerate() {
+            image::imageops::replace(&mut sheet, img, (i as u32 * w) as i64, 0);
+        }
+        let path = repo.join(format!("renders/sheet-{name}.png"));
+        sheet.save(&path).unwrap();
+        println!("{}", path.display());
+    }
+    let golden = frames(&repo.join("scenes/duck-golden-hour.ron"), &|n| vec![n]).unwrap();
+    let path = repo.join("renders/duck-golden-hour.png");
+    golden[0].save(&path).unwrap();
+    println!("{}", path.display());
+}
