@@ -178,7 +178,7 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     // Store the depth a quarter cell toward the light: trilinear interpolation of a depth
     // that is 0 outside and grows linearly inside overestimates it just inside the surface;
     // this shift cancels that on average (measured against an exact march on the duck: mean
-    // sunlit transmittance 7 % low without it, within 1 % with it, at 128 cells).
+    // sunlit transmittance 7 % low without it, 0.7 % low with it, at 128 cells).
     for (t, &s) in tau.iter_mut().zip(sigma) {
         *t = (*t - SURFACE_SHIFT * s * shape.h).max(0.0);
     }

@@ -40,7 +40,9 @@ pub struct Sun {
 impl Default for Sun {
     fn default() -> Self {
         Sun {
-            direction: Vec3::new(-0.4, -0.8, -0.3),
+            // From the upper left of the builtin scenes' cameras (azimuth 20–35°), 32° high:
+            // side light, so the billows model each other with light and shadow.
+            direction: Vec3::new(0.9, -0.6, -0.3),
             elevation_deg: None,
             azimuth_deg: 0.0,
             color: Vec3::new(1.0, 0.95, 0.85),
@@ -117,7 +119,7 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.05,
+            amplitude: 0.08,
             frequency: 7.0,
             octaves: 3,
             evolve: 0.0,
