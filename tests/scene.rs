@@ -214,6 +214,25 @@ fn out_of_range_values_name_the_field() {
             "animation.speed",
         ),
         ("formats", "output: (formats: [])", "output.formats"),
+        // The shot's frame would need about 1 TB: refused before any work, with the size.
+        ("huge", "shot: (width: 100000, height: 100000)", "shot"),
+        ("sun-low", "sun: (elevation_deg: -5.0)", "sun.elevation_deg"),
+        (
+            "sun-high",
+            "sun: (elevation_deg: 95.0)",
+            "sun.elevation_deg",
+        ),
+        ("neg-density", "cloud: (density: -1.0)", "cloud.density"),
+        (
+            "neg-noise",
+            "cloud: (noise: (frequency: -2.0))",
+            "cloud.noise.frequency",
+        ),
+        (
+            "turbidity",
+            "sky: HosekWilkie(turbidity: 0.5, ground_albedo: 0.3)",
+            "sky.turbidity",
+        ),
     ];
     for (name, field_text, field) in cases {
         let text = format!("Scene(target: Model(\"model.ron\"), {field_text})");
@@ -224,6 +243,9 @@ fn out_of_range_values_name_the_field() {
             other => panic!("{name}: expected a validation error, got {other}"),
         }
         assert!(msg.contains("bad.ron"), "{msg}");
+        if name == "huge" {
+            assert!(msg.contains("1.0 TB"), "{msg}");
+        }
     }
 }
 
