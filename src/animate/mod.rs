@@ -13,6 +13,7 @@
 pub mod aggregation;
 pub mod diffusion;
 mod repulsion;
+pub mod stats;
 
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -21,7 +22,7 @@ use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
-pub use diffusion::{DiffusionConfig, DiffusionPlan};
+pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 
 /// Errors of the animation stage: settings that cannot produce an animation.
 #[derive(Debug, thiserror::Error)]

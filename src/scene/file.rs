@@ -12,6 +12,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
+use super::transform::TargetTransform;
 use crate::animate::Animation;
 use crate::render::{CloudMaterial, Sky, Sun};
 
@@ -21,6 +22,9 @@ use crate::render::{CloudMaterial, Sky, Sun};
 pub struct SceneFile {
     /// What the cloud becomes (the only required field).
     pub target: Target,
+    /// Orientation, size and place of the target in the shot (default: as fitted).
+    #[serde(default)]
+    pub transform: TargetTransform,
     /// The animation scheme.
     #[serde(default)]
     pub animation: Animation,

@@ -12,7 +12,9 @@
 pub mod camera;
 pub mod file;
 pub mod shot;
+pub mod stats;
 pub mod target;
+pub mod transform;
 
 use std::path::{Path, PathBuf};
 
