@@ -47,6 +47,9 @@ use crate::blobby::{Blob, BlobField};
 /// Size of blob I on the first frame, relative to its full size ("one small piece").
 const SEED_SIZE: f64 = 0.35;
 
+/// Samples of the blend's volume taken at plan time (for its pace).
+const BLEND_SAMPLES: usize = 8;
+
 /// Share of the final span in which category III grows to full size (`Together`); its `B²`
 /// keeps rising with the blend over the whole span.
 const DETAIL_GROWTH_SHARE: f64 = 0.7;
@@ -146,54 +149,48 @@ pub struct DiffusionPlan {
     /// When category III starts arriving and the early shape blends to the fitted one.
     blend_start: f64,
     blend_seconds: f64,
+    /// `(eased time, progress)` knots of the blend, so the volume rises evenly (empty: the
+    /// identity).
+    pace_knots: Vec<(f64, f64)>,
+    /// Category III arrives together (its growth follows the blend progress).
+    together: bool,
     timeline: Timeline,
 }
 
 impl DiffusionPlan {
     /// Plan the scheme for `target` with iso-level `threshold` (config already validated).
-    ///
-    /// With `early_shape: Ellipsoids`, the early blobs' strength `γ` (`B = γ·(1+A)/A`) is the
-    /// largest of `1, 0.95, …, 0.7` whose blend to the fitted model never loses more than
-    /// 0.2 % of the final volume between samples (eight per blend, 2 % lattice): where the
-    /// early cloud bulges beyond the target, blending would otherwise shrink it.
     pub fn new(
         cfg: &DiffusionConfig,
         target: &[Blob],
         threshold: f64,
         timeline: Timeline,
     ) -> DiffusionPlan {
-        if cfg.early_shape == EarlyShape::Fitted {
-            return DiffusionPlan::with_strength(cfg, target, threshold, timeline, 0.0);
+        let strength = match cfg.early_shape {
+            EarlyShape::Ellipsoids => 1.0,
+            EarlyShape::Fitted => 0.0,
+        };
+        let mut plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, strength);
+        if plan.together {
+            plan.pace_knots = pace_knots(&plan.blend_volumes(threshold));
         }
-        let mut gamma = 1.0;
-        loop {
-            let plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, gamma);
-            if gamma <= 0.7 + 1e-9 || plan.blend_loss(threshold) <= 0.002 {
-                return plan;
-            }
-            gamma -= 0.05;
-        }
+        plan
     }
 
-    /// The largest loss of visible volume (fraction of the final) between eight samples of the
-    /// blend, on a 2 % lattice.
-    fn blend_loss(&self, threshold: f64) -> f64 {
+    /// Visible volume (cells of a 2 % lattice) at evenly spaced blend progresses, at the
+    /// blend's end time.
+    fn blend_volumes(&self, threshold: f64) -> Vec<f64> {
         let lattice = Lattice::for_target(&blob_bounds(&self.target), 0.02);
-        let samples = 8;
-        let volumes: Vec<f64> = (0..=samples)
+        let t = self.blend_start + self.blend_seconds;
+        (0..=BLEND_SAMPLES)
             .map(|j| {
-                let t = self.blend_start + self.blend_seconds * j as f64 / samples as f64;
-                visible_volume(&self.frame_at(t), threshold, lattice).voxels as f64
+                let w = j as f64 / BLEND_SAMPLES as f64;
+                visible_volume(&self.frame_with(t, w), threshold, lattice).voxels as f64
             })
-            .collect();
-        let last = volumes[samples].max(1.0);
-        volumes
-            .windows(2)
-            .map(|w| (w[0] - w[1]) / last)
-            .fold(0.0, f64::max)
+            .collect()
     }
 
-    /// [`DiffusionPlan::new`] with the early blobs' strength `γ` given (0: fitted `B`).
+    /// [`DiffusionPlan::new`] with the early blobs' strength `γ` (`B = γ·(1+A)/A`; 0: the
+    /// fitted `B`), before pacing the blend.
     fn with_strength(
         cfg: &DiffusionConfig,
         target: &[Blob],
@@ -283,6 +280,8 @@ impl DiffusionPlan {
             grow,
             blend_start,
             blend_seconds: g3,
+            pace_knots: Vec::new(),
+            together: cfg.category_iii == DetailArrival::Together,
             timeline,
         }
     }
@@ -312,16 +311,38 @@ impl DiffusionPlan {
 
     /// The blobs at `t` seconds into the motion.
     fn frame_at(&self, t: f64) -> Vec<Blob> {
-        // Blend weight of the fitted parameters (0 before category III, 1 at the end).
-        let w = if self.blend_seconds > 0.0 {
-            // Half linear, half smoothstep: eased ends, a peak rate only 1.25× the mean.
-            let u = ((t - self.blend_start) / self.blend_seconds).clamp(0.0, 1.0);
-            lerp(u, smoothstep(u), 0.5)
+        // Progress of the blend: eased time (half linear, half smoothstep: a peak rate 1.25×
+        // the mean), mapped through the volume pace.
+        let u = if self.blend_seconds > 0.0 {
+            ((t - self.blend_start) / self.blend_seconds).clamp(0.0, 1.0)
         } else if t >= self.blend_start {
             1.0
         } else {
             0.0
         };
+        self.frame_with(t, self.pace(lerp(u, smoothstep(u), 0.5)))
+    }
+
+    /// Blend progress at eased blend time `u ∈ [0, 1]`: piecewise linear through the knots.
+    fn pace(&self, u: f64) -> f64 {
+        let k = &self.pace_knots;
+        if k.len() < 2 || u <= 0.0 {
+            return u.clamp(0.0, 1.0);
+        }
+        let seg = k
+            .windows(2)
+            .position(|w| u <= w[1].0)
+            .unwrap_or(k.len() - 2);
+        let ((u0, p0), (u1, p1)) = (k[seg], k[seg + 1]);
+        if u1 <= u0 {
+            return p1;
+        }
+        lerp(p0, p1, ((u - u0) / (u1 - u0)).clamp(0.0, 1.0))
+    }
+
+    /// The blobs at `t` seconds with blend progress `w` (the fitted parameters' weight; it
+    /// also drives category III's growth when it arrives `Together`).
+    fn frame_with(&self, t: f64, w: f64) -> Vec<Blob> {
         let mut out = self.target.clone();
         // In display order, so a parent's current centre is known before its children's.
         for &i in &self.order {
@@ -338,7 +359,9 @@ impl DiffusionPlan {
                 };
                 continue;
             }
-            let mut e = if g <= 0.0 {
+            let mut e = if self.detail[i] && self.together {
+                smoothstep(w / DETAIL_GROWTH_SHARE)
+            } else if g <= 0.0 {
                 1.0
             } else {
                 smoothstep((t - s) / g)
@@ -374,6 +397,31 @@ impl DiffusionPlan {
         }
         out
     }
+}
+
+/// Knots `(eased time, progress)` through which the blend's volume, sampled at evenly spaced
+/// progresses (`volumes`, made non-decreasing by a running maximum), rises evenly in time.
+/// Empty (the identity) when the volume does not grow.
+fn pace_knots(volumes: &[f64]) -> Vec<(f64, f64)> {
+    let n = volumes.len();
+    if n < 2 {
+        return Vec::new();
+    }
+    let mut v = volumes.to_vec();
+    for k in 1..n {
+        v[k] = v[k].max(v[k - 1]);
+    }
+    let (v0, v1) = (v[0], v[n - 1]);
+    if v1 <= v0 {
+        return Vec::new();
+    }
+    (0..n)
+        .map(|k| {
+            let p = k as f64 / (n - 1) as f64;
+            // Mostly by volume, a little by progress, so no stretch of the blend is instant.
+            (0.8 * (v[k] - v0) / (v1 - v0) + 0.2 * p, p)
+        })
+        .collect()
 }
 
 /// The blobs with `B = γ·(1+A)/A` (`γ` = `strength`; 1 shows an isolated blob at its
