@@ -40,6 +40,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::pieces::{nearest_blob, segment_inside};
 use super::stats::{Lattice, visible_volume};
 use super::{AnimateError, Timeline, blob_bounds, invalid, lerp, smoothstep};
 use crate::blobby::{Blob, BlobField};
@@ -477,16 +478,6 @@ fn volume_paced_finish(early: &[Blob], threshold: f64, order: &[usize]) -> (Vec<
     (finish, v1 as usize)
 }
 
-/// Of the blobs `candidates`, the one whose ellipsoid is nearest `x` (smallest ellipsoidal
-/// radius; ties to the first).
-fn nearest_blob(blobs: &[Blob], candidates: &[usize], x: DVec3) -> Option<usize> {
-    candidates.iter().copied().min_by(|&a, &b| {
-        let ra = blobs[a].ellipsoid().radius_squared(x);
-        let rb = blobs[b].ellipsoid().radius_squared(x);
-        ra.total_cmp(&rb)
-    })
-}
-
 /// Reorder `order[fixed..]` greedily: next is the blob whose centre is nearest (Euclidean) to
 /// the centre of any blob already placed (ties to the earlier one).
 fn order_by_nearest(blobs: &[Blob], order: &mut [usize], fixed: usize) {
@@ -580,16 +571,16 @@ pub fn display_order(
 
 /// True when `blob`, added to the cloud of `field` (blobs `visible`), lies in one piece with
 /// it: the field is at or above the iso-level along the segment from `blob`'s centre to the
-/// centre of its nearest visible blob (32 samples).
+/// centre of its nearest visible blob.
 fn joins(field: &BlobField, blobs: &[Blob], visible: &[usize], blob: &Blob) -> bool {
     let Some(j) = nearest_blob(blobs, visible, blob.center) else {
         return true;
     };
-    let (a, b) = (blob.center, blobs[j].center);
-    (0..=32).all(|k| {
-        let x = a.lerp(b, k as f64 / 32.0);
-        field.value(x) + blob.value(x) >= 0.0
-    })
+    segment_inside(
+        |x| field.value(x) + blob.value(x),
+        blob.center,
+        blobs[j].center,
+    )
 }
 
 /// Signed distance estimate from `x` to the surface of `field` (negative inside), see the

@@ -12,6 +12,7 @@
 
 pub mod aggregation;
 pub mod diffusion;
+pub mod pieces;
 mod repulsion;
 pub mod stats;
 
@@ -146,9 +147,13 @@ pub fn plan(
         ));
     }
     Ok(match animation {
-        Animation::Aggregation(c) => {
-            Plan::Aggregation(AggregationPlan::new(c, &model.blobs, timeline, seed))
-        }
+        Animation::Aggregation(c) => Plan::Aggregation(AggregationPlan::new(
+            c,
+            &model.blobs,
+            model.threshold,
+            timeline,
+            seed,
+        )),
         Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
             c,
             &model.blobs,
