@@ -12,6 +12,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
+use super::camera::CameraKeyframes;
 use super::transform::TargetTransform;
 use crate::animate::Animation;
 use crate::render::{CloudMaterial, Sky, Sun};
@@ -96,14 +97,16 @@ fn default_samples() -> usize {
     60_000
 }
 
-/// The camera: automatic framing of the target, or fixed; optionally orbiting.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum CameraSpec {
     /// Frame the target's bounding sphere from a direction.
     Auto(AutoCamera),
     /// An explicit pinhole camera (world units).
     Fixed(FixedCamera),
+    /// Keyframes in seconds, smoothly interpolated (see [`super::camera`]).
+    Keyframes(CameraKeyframes),
 }
 
 impl Default for CameraSpec {
@@ -329,6 +332,8 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
                 ));
             }
         }
+        // Checked while parsing, with the file position.
+        CameraSpec::Keyframes(_) => {}
     }
     finite("sun.direction", &s.sun.direction.to_array())?;
     finite("sun.color", &s.sun.color.to_array())?;

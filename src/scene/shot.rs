@@ -187,7 +187,7 @@ pub fn frame_settings(
     RenderSettings {
         width: setup.width,
         height: setup.height,
-        camera: camera_at(&f.camera, &prep.bounds, aspect, u),
+        camera: camera_at(&f.camera, &prep.bounds, aspect, u, k as f64 / f.shot.fps),
         sun: f.sun,
         sky: f.sky,
         cloud: f.cloud,
