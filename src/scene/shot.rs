@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use super::camera::camera_at;
 use super::stats::StatsBasis;
-use super::target::{TargetOrigin, load_target};
+use super::target::{TargetOrigin, load_spec, load_target};
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
@@ -155,12 +155,22 @@ pub fn prepare(scene: &Scene, mut model: BlobModel) -> Result<Prepared, SceneErr
         fps: shot.fps,
         hold_seconds: scene.file.animation.hold_seconds(),
     };
-    let plan = animate::plan(&scene.file.animation, &model, timeline, scene.file.seed).map_err(
-        |source| SceneError::Animate {
-            scene: scene.path.clone(),
-            source,
-        },
-    )?;
+    // A morph's source: fitted sources are cached in the scene's output folder.
+    let source = match &scene.file.animation {
+        animate::Animation::Morph(m) => Some(load_spec(scene, &m.from, &scene.output_dir)?.0),
+        _ => None,
+    };
+    let plan = animate::plan_with_source(
+        &scene.file.animation,
+        &model,
+        source.as_ref(),
+        timeline,
+        scene.file.seed,
+    )
+    .map_err(|source| SceneError::Animate {
+        scene: scene.path.clone(),
+        source,
+    })?;
     let bounds = blob_bounds(&model.blobs);
     Ok(Prepared {
         model,
