@@ -4,7 +4,7 @@
 //! iso-level along the segment from its centre to the centre of its nearest joined blob (by
 //! that blob's ellipsoidal radius). Starting from the cluster's largest blob, blobs that join
 //! are added until none does; each blob left over is pulled along the segment toward its
-//! nearest joined blob just far enough to join (bisection), so jitter and repulsion never leave
+//! nearest joined blob until it joins (bisection) and a little further, so jitter and repulsion never leave
 //! a blob flying alone. Only blobs whose centre is inside the cluster's solid take part (the
 //! others do not show); the partner's centre is inside, so a pulled blob joins at the latest
 //! on reaching it, and the loop ends.
@@ -13,8 +13,11 @@ use glam::DVec3;
 
 use crate::blobby::{Blob, BlobField};
 
+/// Share of the remaining way a pulled blob moves past the point where it first joins.
+const NECK_MARGIN: f64 = 0.3;
+
 /// Samples along a joining segment.
-const SEGMENT_SAMPLES: usize = 24;
+const SEGMENT_SAMPLES: usize = 32;
 
 /// True when the segment `a → b` lies inside the solid of the field `f` (`F(x) = f(x) ≥ 0` at
 /// every sample).
@@ -85,7 +88,8 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
                 lo = mid;
             }
         }
-        blobs[i].center = from.lerp(to, hi);
+        // A little further than just touching, so the neck is solid, not a point.
+        blobs[i].center = from.lerp(to, hi + NECK_MARGIN * (1.0 - hi));
         joined.push(i);
         moved += 1;
     }
@@ -108,7 +112,7 @@ mod tests {
     }
 
     #[test]
-    fn a_blob_flying_alone_is_pulled_back_just_enough() {
+    fn a_blob_flying_alone_is_pulled_back_until_it_joins() {
         let mut blobs = vec![
             sphere(DVec3::ZERO, 1.0),
             sphere(DVec3::new(1.5, 0.0, 0.0), 0.6),
