@@ -338,8 +338,8 @@ fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
 #[test]
 fn seeded_frames_have_pinned_hashes() {
     for (name, anim, pinned) in [
-        ("hash-agg", "Aggregation(())", 4648689438870808975u64),
-        ("hash-dif", "Diffusion(())", 11031614675118952727u64),
+        ("hash-agg", "Aggregation(())", 15506668539506299628u64),
+        ("hash-dif", "Diffusion(())", 921984550393194176u64),
     ] {
         let a = render_tiny(name, anim, 4);
         let b = render_tiny(name, anim, 4);
