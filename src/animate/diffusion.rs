@@ -16,26 +16,36 @@
 //!   fitted parameters throughout (the paper's literal reading).
 //! - **Order.** Blob I is shown first. Then, repeatedly, the next blob of category II is the
 //!   remaining one whose centre has the smallest signed distance to the surface of the blobs
-//!   shown so far (as displayed, negative inside). The distance is estimated as `−F/|∇F|` of
-//!   the visible blobs' field, clamped to `±D` (`D` = target diagonal); a centre outside every
+//!   shown so far (as displayed, negative inside) among those that join the shown cloud (the
+//!   segment from its centre to its nearest shown blob's centre lies inside the cloud with it
+//!   added; early shape `Ellipsoids` only). The distance is estimated as `−F/|∇F|` of the
+//!   visible blobs' field, clamped to `±D` (`D` = target diagonal); a centre outside every
 //!   visible support gets `D + (distance to the nearest visible centre)`, so nearer blobs come
-//!   first. Ties go to the lower index. Category III keeps its selection order
-//!   (`category_iii: Together`) or, with `category_iii: Progressive`, is ordered greedily by
-//!   the distance of its centre to the nearest blob shown before.
-//! - **Schedule.** Blob I is visible at full size from the first frame. Category II grows
-//!   during the first part of the motion, paced by volume: blob `k` finishes growing when the
-//!   motion's first part is as far through as the early shape's volume is through its growth
-//!   (volumes measured at plan time on a 2 % lattice), and starts `grow_seconds` before (not
-//!   before the first frame), so the visible volume rises at an even rate. The last
-//!   `final_grow_seconds` of the motion (at most a third of it; with `Progressive`, at least
-//!   half of it) bring category III: `Together` grows all of III at once over that span, as
-//!   the paper says ("finally added together"); `Progressive` starts III's blobs at evenly
-//!   spaced times over it, each growing over `grow_seconds`.
-//! - **Growth.** A new blob starts at the centre of the nearest blob shown before it (nearest
-//!   in that blob's ellipsoidal radius, so a long blob's far end counts as near), at zero
-//!   size, and moves to its place while its semi-axes grow to full size (smoothstep in time);
-//!   a III blob's `B²` also rises from zero with the blend, so it adds to the field gently.
-//!   Before it starts, a blob is hidden (`B = 0`). The visible count never decreases.
+//!   first. Ties go to the lower index. II blobs that never join are deferred to III. Category
+//!   III is ordered greedily by the distance of its centre to the nearest blob placed before.
+//! - **Schedule.** Blob I is on screen from the first frame at `SEED_SIZE` of its size and
+//!   grows, its volume rising evenly. Category II grows during the first part of the motion,
+//!   paced by volume: blob `k` finishes growing when the first part is as far through as the
+//!   early shape's volume (measured at plan time on a 2 % lattice), and starts at the previous
+//!   blob's finish or `grow_seconds` before its own, whichever is earlier. The final part
+//!   brings category III; its length is the motion's share of the volume III adds (the early
+//!   shape's share counted within [0.2, 0.8]), at least `final_grow_seconds`; with
+//!   `Progressive`, at least half the motion. `Together` grows all of III at once over the
+//!   final part as the blend progresses, as the paper says ("finally added together"); the
+//!   blend's progress is paced by its volume, sampled at plan time, so that the volume rises
+//!   evenly. `Progressive` starts III's blobs at evenly spaced times over it, each growing
+//!   over `grow_seconds`.
+//! - **Growth.** A new blob starts at the centre of its parent — the nearest blob placed
+//!   before it (nearest in that blob's ellipsoidal radius, so a long blob's far end counts as
+//!   near) — at zero size, and moves out while its semi-axes grow to full size (smoothstep);
+//!   its offset from its parent's *current* centre grows with its size, so a chain of III
+//!   blobs (a leg) grows out as a scaled copy of itself about its root. A III blob's `B²`
+//!   rises from zero with the blend, so it adds to the field gently. Before it starts, a blob
+//!   is hidden (`B = 0`). The visible count never decreases.
+//!
+//! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
+//! every frame, at most 31 % of the final volume added per second; the blend's start loses up
+//! to 1.3 % (duck) and 5.4 % (horse) of the final volume over a few frames.
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
