@@ -2,8 +2,10 @@
 
 pub mod codec;
 pub mod eval;
+pub mod farm;
 pub mod fit;
 pub mod mesh;
+pub mod prepare;
 pub mod preview;
 pub mod render;
 
@@ -35,6 +37,10 @@ pub enum Command {
     Encode(codec::EncodeArgs),
     /// Decode a binary model back to a RON model file.
     Decode(codec::DecodeArgs),
+    /// Fit and cache a scene's target once, before a farm renders its frames.
+    Prepare(prepare::Args),
+    /// Write (and with --submit, submit) a farm's jobs: prepare, then one task per frame chunk.
+    Farm(farm::Args),
 }
 
 /// Run the parsed command.
@@ -47,6 +53,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Preview(a) => preview::run(a),
         Command::Encode(a) => codec::run_encode(a),
         Command::Decode(a) => codec::run_decode(a),
+        Command::Prepare(a) => prepare::run(a),
+        Command::Farm(a) => farm::run(a),
     }
 }
 

@@ -10,6 +10,7 @@
 //! directory, so renders land in the repository's `renders/` when run from its root.
 
 pub mod camera;
+pub mod chunk;
 pub mod file;
 pub mod shot;
 pub mod target;
