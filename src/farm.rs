@@ -130,27 +130,37 @@ fn extra_lines(sbatch_args: &[String]) -> String {
         .collect()
 }
 
-/// The Kubernetes Job that runs the prepare step; `image` holds nephele, and `volume_claim`
-/// is a PersistentVolumeClaim holding the scene and output folders, mounted at `mount` (their
-/// common ancestor) so that every path is the same inside the pods.
-pub fn k8s_prepare_job(job: &FarmJob, image: &str, volume_claim: &str) -> String {
+/// Where the pods of a Kubernetes job run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct K8sPod {
+    /// Container image holding nephele.
+    pub image: String,
+    /// PersistentVolumeClaim holding the scene and output folders.
+    pub volume_claim: String,
+    /// Where the claim is mounted: a folder holding the scene and the output folder, so that
+    /// every path is the same inside the pods ([`k8s_mount`]).
+    pub mount: PathBuf,
+}
+
+/// The Kubernetes Job that runs the prepare step.
+pub fn k8s_prepare_job(job: &FarmJob, pod: &K8sPod) -> String {
     let mut s = k8s_head(job, &format!("{}-prepare", k8s_name(&job.name)));
     s.push_str("  backoffLimit: 2\n");
-    s.push_str(&k8s_pod(job, image, volume_claim, &job.prepare_args()));
+    s.push_str(&k8s_pod(job, pod, &job.prepare_args()));
     s
 }
 
 /// The Kubernetes Indexed Job of the render array: `completionMode: Indexed` with `N`
 /// completions; each pod runs `nephele render … --task auto/N`, which reads
 /// `JOB_COMPLETION_INDEX`. A failed pod is retried (frames resume).
-pub fn k8s_indexed_job(job: &FarmJob, image: &str, volume_claim: &str) -> String {
+pub fn k8s_indexed_job(job: &FarmJob, pod: &K8sPod) -> String {
     let mut s = k8s_head(job, &k8s_name(&job.name));
     s.push_str(&format!(
         "  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimitPerIndex: 3\n  maxFailedIndexes: 0\n",
         n = job.tasks
     ));
     let task = format!("auto/{}", job.tasks);
-    s.push_str(&k8s_pod(job, image, volume_claim, &job.render_args(&task)));
+    s.push_str(&k8s_pod(job, pod, &job.render_args(&task)));
     s
 }
 
@@ -166,18 +176,17 @@ fn k8s_head(job: &FarmJob, name: &str) -> String {
     )
 }
 
-fn k8s_pod(job: &FarmJob, image: &str, volume_claim: &str, args: &[String]) -> String {
-    let mount = common_ancestor(&job.scene, &job.output);
+fn k8s_pod(job: &FarmJob, pod: &K8sPod, args: &[String]) -> String {
     let command: Vec<String> = std::iter::once(path_text(&job.nephele))
         .chain(args.iter().cloned())
         .map(|a| yaml_string(&a))
         .collect();
     format!(
         "  template:\n    spec:\n      restartPolicy: Never\n      containers:\n      - name: nephele\n        image: {}\n        command: [{}]\n        volumeMounts:\n        - name: shared\n          mountPath: {}\n      volumes:\n      - name: shared\n        persistentVolumeClaim:\n          claimName: {}\n",
-        yaml_string(image),
+        yaml_string(&pod.image),
         command.join(", "),
-        yaml_string(&path_text(&mount)),
-        yaml_string(volume_claim)
+        yaml_string(&path_text(&pod.mount)),
+        yaml_string(&pod.volume_claim)
     )
 }
 
@@ -198,21 +207,18 @@ pub fn k8s_name(name: &str) -> String {
     if s.is_empty() { "nephele".into() } else { s }
 }
 
-/// The deepest folder containing both the scene file and the output folder.
-fn common_ancestor(scene: &Path, output: &Path) -> PathBuf {
-    let folder = scene.parent().unwrap_or(Path::new("/"));
+/// The deepest folder holding both the scene file and the output folder (absolute paths), or
+/// `None` when that is the root, which cannot be a volume's mount point.
+pub fn k8s_mount(job: &FarmJob) -> Option<PathBuf> {
+    let folder = job.scene.parent()?;
     let mut common = PathBuf::new();
-    for (a, b) in folder.components().zip(output.components()) {
+    for (a, b) in folder.components().zip(job.output.components()) {
         if a != b {
             break;
         }
         common.push(a);
     }
-    if common.as_os_str().is_empty() {
-        PathBuf::from("/")
-    } else {
-        common
-    }
+    (common.components().count() > 1).then_some(common)
 }
 
 /// A YAML double-quoted scalar (JSON string syntax, which YAML accepts).
@@ -285,12 +291,22 @@ mod tests {
 
     #[test]
     fn indexed_job_reads_the_completion_index() {
-        let s = k8s_indexed_job(&job(), "registry/nephele:0.1", "renders");
+        let pod = K8sPod {
+            image: "registry/nephele:0.1".into(),
+            volume_claim: "renders".into(),
+            mount: k8s_mount(&job()).unwrap(),
+        };
+        let s = k8s_indexed_job(&job(), &pod);
         assert!(s.contains("completionMode: Indexed\n  completions: 4\n"));
         assert!(s.contains("\"--task\", \"auto/4\""));
         assert!(s.contains("mountPath: \"/farm\"\n"));
         assert!(s.contains("claimName: \"renders\"\n"));
-        assert!(k8s_prepare_job(&job(), "img", "c").contains("name: duck-diffusion-preview-prepare\n"));
+        assert!(k8s_prepare_job(&job(), &pod).contains("name: duck-diffusion-preview-prepare\n"));
+        let apart = FarmJob {
+            output: "/tmp/out".into(),
+            ..job()
+        };
+        assert_eq!(k8s_mount(&apart), None);
     }
 
     #[test]

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
-use nephele::farm::{self, FarmJob};
+use nephele::farm::{self, FarmJob, K8sPod};
 use nephele::scene::{self, RenderOptions, chunk};
 
 use super::render::FrameArg;
@@ -127,16 +127,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )?,
             )
         }
-        Engine::K8s => (
-            write(
-                format!("{}.prepare.k8s.yaml", scene.name),
-                farm::k8s_prepare_job(&job, &args.image, &args.volume_claim),
-            )?,
-            write(
-                format!("{}.k8s.yaml", scene.name),
-                farm::k8s_indexed_job(&job, &args.image, &args.volume_claim),
-            )?,
-        ),
+        Engine::K8s => {
+            let pod = K8sPod {
+                image: args.image.clone(),
+                volume_claim: args.volume_claim.clone(),
+                mount: farm::k8s_mount(&job).with_context(|| {
+                    format!(
+                        "k8s: the scene {} and the output folder {} share no folder below / to mount \
+                         the volume at; put both under one shared folder",
+                        job.scene.display(),
+                        job.output.display()
+                    )
+                })?,
+            };
+            (
+                write(
+                    format!("{}.prepare.k8s.yaml", scene.name),
+                    farm::k8s_prepare_job(&job, &pod),
+                )?,
+                write(
+                    format!("{}.k8s.yaml", scene.name),
+                    farm::k8s_indexed_job(&job, &pod),
+                )?,
+            )
+        }
     };
     println!(
         "{} tasks of at most {} frames (frames {}..{}):\n  {}\n  {}",

@@ -25,7 +25,7 @@ pub const ARRAY_INDEX_VARS: [&str; 3] = [
 #[non_exhaustive]
 pub enum ChunkError {
     /// `N` was 0.
-    #[error("--task ?/0: the number of tasks must be at least 1")]
+    #[error("--task I/0: the number of tasks N in --task I/N must be at least 1")]
     NoTasks,
     /// `I ≥ N`.
     #[error("--task {index}/{count}: task indices are 0-based, so the index must be below {count} (0..={})", count - 1)]
