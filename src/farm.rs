@@ -76,7 +76,9 @@ pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     s.push_str(&format!("#SBATCH --job-name={}-prepare\n", job.name));
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        job.logs.join(format!("{}-prepare_%j.log", job.name)).display()
+        job.logs
+            .join(format!("{}-prepare_%j.log", job.name))
+            .display()
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -106,7 +108,13 @@ pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     let task = format!("\"${{SLURM_ARRAY_TASK_ID}}/{}\"", job.tasks);
     let words: Vec<String> = std::iter::once(path_text(&job.nephele))
         .chain(job.render_args(""))
-        .map(|w| if w.is_empty() { task.clone() } else { shell_quote(&w) })
+        .map(|w| {
+            if w.is_empty() {
+                task.clone()
+            } else {
+                shell_quote(&w)
+            }
+        })
         .collect();
     s.push_str(&format!("exec {}\n", words.join(" ")));
     s

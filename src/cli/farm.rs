@@ -28,9 +28,9 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub engine: Engine,
     /// At most this many frames per task: the frames are cut into ceil(frames / CHUNK)
-    /// contiguous chunks of balanced sizes.
-    #[arg(long, default_value_t = 10)]
-    pub chunk: u32,
+    /// contiguous chunks of balanced sizes [default: 10, or all frames if fewer].
+    #[arg(long)]
+    pub chunk: Option<u32>,
     /// Frames to render, as for `render --frames` (default: the scene's `frames`, else the
     /// whole shot).
     #[arg(long, value_parser = super::render::parse_frames)]
@@ -62,10 +62,15 @@ pub struct Args {
     pub volume_claim: String,
 }
 
+/// Frames per task when `--chunk` is not given.
+const DEFAULT_CHUNK: u32 = 10;
+
 /// Run `nephele farm`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.submit && args.engine == Engine::K8s {
-        bail!("--submit submits to Slurm only; apply the k8s manifests with kubectl (README, \"Rendering on a farm\")");
+        bail!(
+            "--submit submits to Slurm only; apply the k8s manifests with kubectl (README, \"Rendering on a farm\")"
+        );
     }
     let scene = scene::load_scene(&args.scene)?;
     let total = scene.file.shot.frame_count();
@@ -78,12 +83,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..RenderOptions::default()
     };
     let setup = scene::shot::shot_setup(&scene, &opts)?;
-    let tasks = chunk::task_count(&setup.frames, args.chunk)?;
+    let frame_count = setup.frames.end() - setup.frames.start() + 1;
+    let chunk_frames = args.chunk.unwrap_or(DEFAULT_CHUNK.min(frame_count));
+    let tasks = chunk::task_count(&setup.frames, chunk_frames)?;
     nephele::atomic::check_writable(&setup.dir)
         .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
-    let absolute = |p: &Path| {
-        std::path::absolute(p).with_context(|| format!("resolving {}", p.display()))
-    };
+    let absolute =
+        |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
     let dir = absolute(&setup.dir)?;
     let nephele = match (&args.nephele, args.engine) {
         (Some(p), _) => p.clone(),
@@ -155,7 +161,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "{} tasks of at most {} frames (frames {}..{}):\n  {}\n  {}",
         tasks,
-        args.chunk,
+        chunk_frames,
         setup.frames.start(),
         setup.frames.end(),
         prepare.display(),
@@ -188,7 +194,9 @@ fn submit(prepare: &Path, array: &Path, tasks: u32) -> anyhow::Result<()> {
     let prep = sbatch(&[prepare.as_os_str()])?;
     let dependency = format!("--dependency=afterok:{prep}");
     let arr = sbatch(&[dependency.as_ref(), array.as_os_str()])?;
-    println!("prepare job: {prep}\nrender array: {arr} ({tasks} tasks)\nwatch it: squeue -j {prep},{arr}");
+    println!(
+        "prepare job: {prep}\nrender array: {arr} ({tasks} tasks)\nwatch it: squeue -j {prep},{arr}"
+    );
     Ok(())
 }
 

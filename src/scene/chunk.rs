@@ -36,7 +36,9 @@ pub enum ChunkError {
         count: u32,
     },
     /// More tasks than frames: some chunk would be empty.
-    #[error("{count} tasks for {frames} frames: every task needs a frame, use at most {frames} tasks")]
+    #[error(
+        "{count} tasks for {frames} frames: every task needs a frame, use at most {frames} tasks"
+    )]
     MoreTasksThanFrames {
         /// Number of tasks.
         count: u32,
@@ -181,12 +183,7 @@ mod tests {
     #[test]
     fn index_comes_from_the_first_variable_set() {
         let env = |pairs: &'static [(&'static str, &'static str)]| {
-            move |k: &str| {
-                pairs
-                    .iter()
-                    .find(|p| p.0 == k)
-                    .map(|p| p.1.to_string())
-            }
+            move |k: &str| pairs.iter().find(|p| p.0 == k).map(|p| p.1.to_string())
         };
         assert_eq!(
             index_from_env(4, env(&[("JOB_COMPLETION_INDEX", "2")])),
@@ -195,7 +192,10 @@ mod tests {
         assert_eq!(
             index_from_env(
                 4,
-                env(&[("AWS_BATCH_JOB_ARRAY_INDEX", "1"), ("SLURM_ARRAY_TASK_ID", "3")])
+                env(&[
+                    ("AWS_BATCH_JOB_ARRAY_INDEX", "1"),
+                    ("SLURM_ARRAY_TASK_ID", "3")
+                ])
             ),
             Ok(3)
         );
