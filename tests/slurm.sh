@@ -8,12 +8,13 @@
 #   2. submits the same preview shot as a 4-task array with `nephele farm --submit`, waits for it
 #      (bounded), and checks that every frame exists once and equals the local render byte for
 #      byte (and that the fitted target cache does too);
-#   3. submits frames 85..96 at full quality as 4 tasks of 3 frames, requeues task 0 with
-#      `scontrol requeue` as soon as its first frame is written (the kill lands mid-frame), and
-#      checks that the requeued task resumed (skipped the finished frames) and that the frames
-#      again equal a local render;
+#   3. submits frames 85..96 at full quality as 4 tasks of 3 frames, kills task 0 (SIGKILL) as
+#      soon as its first frame is written (the kill lands mid-frame), requeues it with
+#      `scontrol requeue`, and checks that it resumed (skipped the finished frame) and that the
+#      frames again equal a local render;
 # prints the wall times of the arrays and of the local renders, and stops every daemon it
-# started by its PID on exit.
+# started by its PID on exit. With NEPHELE_SLURM_BENCH=1 it also times the whole shot at full
+# quality as a 4-task array against a local render (a benchmark: minutes, not run by CI).
 #
 # Usage (as root): tests/slurm.sh [NEPHELE_BINARY]   (default: target/release/nephele)
 # Without root or the Debian packages (slurmctld slurmd slurm-client munge) it prints
@@ -232,9 +233,12 @@ t=$(now)
 out=$("$bin" farm "$scene" --engine slurm --frames 85..96 --chunk 3 --output "$tmp/farm" --submit)
 read -r prep arr <<<"$(job_ids "$out")"
 jobs_submitted="$prep $arr"
-# Task 0 renders frames 85..87: requeue it as soon as frame 85 is finished (its PNG is written
-# last), so the kill lands while it renders frame 86.
+# Task 0 renders frames 85..87: SIGKILL it as soon as frame 85 is finished (its PNG is written
+# last), so the kill lands while it renders frame 86; then requeue the failed task.
 wait_for 120 "task 0's first frame" test -f "$tmp/farm/duck-diffusion_0085.png"
+scancel --full --signal=KILL "${arr}_0"
+wait_for 30 "task 0 failed after SIGKILL" bash -c "scontrol -o show job ${arr}_0 | grep -q JobState=FAILED"
+[ ! -e "$tmp/farm/duck-diffusion_0087.png" ] || fail "task 0 had finished its chunk before the kill"
 scontrol requeue "${arr}_0"
 wait_jobs 300 "$prep" "$arr"
 farm_full=$(since "$t")
@@ -250,7 +254,24 @@ read -r rendered skipped <<<"$resumed"
 	fail "task 0 did not resume mid-chunk (rendered $rendered, skipped $skipped):
 $(cat "$log0")"
 same_frames "$tmp/local" "$tmp/farm" 85 96
-echo "array $arr: task 0 killed mid-chunk and requeued; it resumed ($skipped frames already done, $rendered rendered); frames 85..96 equal the local render byte for byte"
+echo "array $arr: task 0 killed mid-frame and requeued; it resumed ($skipped frames already done, $rendered rendered); frames 85..96 equal the local render byte for byte"
+
+# --- 4. (benchmark, NEPHELE_SLURM_BENCH=1) the whole shot at full quality ------------------
+if [ "${NEPHELE_SLURM_BENCH:-0}" = 1 ]; then
+	t=$(now)
+	"$bin" prepare "$scene" --output "$tmp/bench-local" 2>/dev/null
+	"$bin" render "$scene" --output "$tmp/bench-local" 2>/dev/null
+	local_bench=$(since "$t")
+	t=$(now)
+	out=$("$bin" farm "$scene" --engine slurm --chunk 24 --output "$tmp/bench-farm" --submit)
+	read -r prep arr <<<"$(job_ids "$out")"
+	jobs_submitted="$prep $arr"
+	wait_jobs 1800 "$prep" "$arr"
+	farm_bench=$(since "$t")
+	check_completed "$arr" 4
+	same_frames "$tmp/bench-local" "$tmp/bench-farm" 1 96
+	echo "wall time: whole shot at full quality (96 frames, 640x360) 4-task array ${farm_bench} s vs local ${local_bench} s (both include the fit); frames equal"
+fi
 
 echo "wall time: preview shot (96 frames, 160x90) 4-task array ${farm_preview} s vs local ${local_preview} s (both include the fit)"
 echo "wall time: full quality frames 85..96 (640x360) 4-task array with one requeue ${farm_full} s vs local ${local_full} s (target cached)"
