@@ -236,8 +236,21 @@ jobs_submitted="$prep $arr"
 # Task 0 renders frames 85..87: SIGKILL it as soon as frame 85 is finished (its PNG is written
 # last), so the kill lands while it renders frame 86; then requeue the failed task.
 wait_for 120 "task 0's first frame" test -f "$tmp/farm/duck-diffusion_0085.png"
-scancel --full --signal=KILL "${arr}_0"
-wait_for 30 "task 0 failed after SIGKILL" bash -c "scontrol -o show job ${arr}_0 | grep -q JobState=FAILED"
+# The batch script execs nephele, so the batch step's nephele process is the task.
+task0=$(scontrol -o show job "${arr}_0" | sed -n 's/^JobId=\([0-9]*\) .*/\1/p')
+victim=""
+for p in $(scontrol listpids "$task0" 2>/dev/null | awk '$3 == "batch" { print $1 }'); do
+	[ "$(cat "/proc/$p/comm" 2>/dev/null)" = nephele ] && victim=$p
+done
+[ -n "$victim" ] || fail "no nephele process in task 0 (job $task0): $(scontrol listpids "$task0" 2>&1)"
+kill -9 "$victim"
+for _ in $(seq 300); do
+	state=$(scontrol -o show job "${arr}_0" | grep -o 'JobState=[A-Z_]*')
+	case $state in JobState=RUNNING | JobState=COMPLETING) ;; *) break ;; esac
+	sleep 0.1
+done
+[ "$state" = JobState=FAILED ] || fail "task 0 is not FAILED after SIGKILL: $(scontrol -o show job "${arr}_0")
+$(cat "$tmp/farm/logs/duck-diffusion_${arr}_0.log")"
 [ ! -e "$tmp/farm/duck-diffusion_0087.png" ] || fail "task 0 had finished its chunk before the kill"
 scontrol requeue "${arr}_0"
 wait_jobs 300 "$prep" "$arr"
@@ -255,6 +268,8 @@ read -r rendered skipped <<<"$resumed"
 $(cat "$log0")"
 same_frames "$tmp/local" "$tmp/farm" 85 96
 echo "array $arr: task 0 killed mid-frame and requeued; it resumed ($skipped frames already done, $rendered rendered); frames 85..96 equal the local render byte for byte"
+echo "task 0's log (both runs):"
+sed 's/^/  | /' "$log0"
 
 # --- 4. (benchmark, NEPHELE_SLURM_BENCH=1) the whole shot at full quality ------------------
 if [ "${NEPHELE_SLURM_BENCH:-0}" = 1 ]; then
