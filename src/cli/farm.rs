@@ -75,9 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = scene::load_scene(&args.scene)?;
     let total = scene.file.shot.frame_count();
     let opts = RenderOptions {
-        frames: args
-            .frames
-            .map(|f| (f.first.unwrap_or(1), f.last.unwrap_or(total))),
+        frames: args.frames.map(|f| f.resolve(total)),
         output: args.output.clone(),
         preview: args.preview,
         ..RenderOptions::default()

@@ -65,6 +65,13 @@ pub struct FrameArg {
     pub last: Option<u32>,
 }
 
+impl FrameArg {
+    /// The inclusive range, open bounds filled from a shot of `total` frames.
+    pub fn resolve(self, total: u32) -> (u32, u32) {
+        (self.first.unwrap_or(1), self.last.unwrap_or(total))
+    }
+}
+
 pub(crate) fn parse_frames(s: &str) -> Result<FrameArg, String> {
     let num = |t: &str| -> Result<Option<u32>, String> {
         let t = t.trim();
@@ -89,9 +96,7 @@ pub(crate) fn parse_frames(s: &str) -> Result<FrameArg, String> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = scene::load_scene(&args.scene)?;
     let total = scene.file.shot.frame_count();
-    let frames = args
-        .frames
-        .map(|f| (f.first.unwrap_or(1), f.last.unwrap_or(total)));
+    let frames = args.frames.map(|f| f.resolve(total));
     let mut opts = RenderOptions {
         frames,
         output: args.output,
@@ -120,7 +125,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = scene::render_shot(&scene, &opts, &mut |f| {
         bar.inc(1);
         if !f.skipped {
-            bar.println(format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds));
+            let line = format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds);
+            // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
+            if bar.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                bar.println(line);
+            }
         }
     })
     .with_context(|| format!("rendering {}", args.scene.display()))?;
