@@ -266,6 +266,11 @@ read -r rendered skipped <<<"$resumed"
 [ "$((rendered + skipped))" = 3 ] && [ "$skipped" -ge 1 ] && [ "$skipped" -le 2 ] ||
 	fail "task 0 did not resume mid-chunk (rendered $rendered, skipped $skipped):
 $(cat "$log0")"
+# Across the killed and the requeued run, every frame of the chunk was finished exactly once.
+for f in 85 86 87; do
+	[ "$(grep -c "^frame *$f/96:" "$log0")" = 1 ] || fail "frame $f was not rendered exactly once by task 0:
+$(cat "$log0")"
+done
 same_frames "$tmp/local" "$tmp/farm" 85 96
 echo "array $arr: task 0 killed mid-frame and requeued; it resumed ($skipped frames already done, $rendered rendered); frames 85..96 equal the local render byte for byte"
 echo "task 0's log (both runs):"
