@@ -76,9 +76,7 @@ pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     s.push_str(&format!("#SBATCH --job-name={}-prepare\n", job.name));
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        job.logs
-            .join(format!("{}-prepare_%j.log", job.name))
-            .display()
+        sbatch_path(&job.logs.join(format!("{}-prepare_%j.log", job.name)))
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -99,7 +97,7 @@ pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     s.push_str("#SBATCH --requeue\n#SBATCH --open-mode=append\n");
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        job.logs.join(format!("{}_%A_%a.log", job.name)).display()
+        sbatch_path(&job.logs.join(format!("{}_%A_%a.log", job.name)))
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -129,6 +127,17 @@ fn slurm_header(job: &FarmJob) -> String {
         job.frames.end(),
         job.tasks
     )
+}
+
+/// A path as an `#SBATCH` option value: double-quoted when it holds whitespace (sbatch splits
+/// `#SBATCH` lines on whitespace outside quotes).
+fn sbatch_path(p: &Path) -> String {
+    let t = path_text(p);
+    if t.contains(char::is_whitespace) {
+        format!("\"{t}\"")
+    } else {
+        t
+    }
 }
 
 fn extra_lines(sbatch_args: &[String]) -> String {
@@ -321,5 +330,7 @@ mod tests {
     fn quoting_survives_quotes() {
         assert_eq!(shell_quote("it's"), r"'it'\''s'");
         assert_eq!(k8s_name("Duck_Diffusion.v2"), "duck-diffusion-v2");
+        assert_eq!(sbatch_path(Path::new("/a b/c")), "\"/a b/c\"");
+        assert_eq!(sbatch_path(Path::new("/a/c")), "/a/c");
     }
 }

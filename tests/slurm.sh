@@ -206,8 +206,10 @@ cmp -s "$tmp"/local/target-*.ron "$tmp"/local2/target-*.ron || fail "two fits di
 echo "local renders are byte-identical across runs (96 preview frames, EXR and PNG, and the fit)"
 
 # --- 2. the preview shot as a 4-task array -------------------------------------------------
+# (the farm's output folder has a space in its name: the job scripts must quote their paths)
+farm="$tmp/farm out"
 t=$(now)
-out=$("$bin" farm "$scene" --engine slurm --chunk 24 --preview --output "$tmp/farm" --submit)
+out=$("$bin" farm "$scene" --engine slurm --chunk 24 --preview --output "$farm" --submit)
 read -r prep arr <<<"$(job_ids "$out")"
 jobs_submitted="$prep $arr"
 grep -q "^4 tasks" <<<"$out" || fail "expected 4 tasks:
@@ -216,12 +218,12 @@ wait_jobs 300 "$prep" "$arr"
 farm_preview=$(since "$t")
 check_completed "$prep" 1
 check_completed "$arr" 4
-same_frames "$tmp/local/preview" "$tmp/farm/preview" 1 96
-cmp -s "$tmp"/local/target-*.ron "$tmp"/farm/target-*.ron || fail "the farm's fit differs from the local one"
+same_frames "$tmp/local/preview" "$farm/preview" 1 96
+cmp -s "$tmp"/local/target-*.ron "$farm"/target-*.ron || fail "the farm's fit differs from the local one"
 for i in 0 1 2 3; do
-	grep -q "^$tmp/farm/preview: 24 frames rendered, 0 already done" \
-		"$tmp/farm/preview/logs/duck-diffusion-preview_${arr}_$i.log" ||
-		fail "task $i did not render 24 frames: $(cat "$tmp/farm/preview/logs/duck-diffusion-preview_${arr}_$i.log")"
+	grep -q "^$farm/preview: 24 frames rendered, 0 already done" \
+		"$farm/preview/logs/duck-diffusion-preview_${arr}_$i.log" ||
+		fail "task $i did not render 24 frames: $(cat "$farm/preview/logs/duck-diffusion-preview_${arr}_$i.log")"
 done
 echo "array $arr: 4 tasks completed; 96 preview frames equal the local render byte for byte"
 
@@ -230,12 +232,12 @@ t=$(now)
 "$bin" render "$scene" --frames 85..96 --output "$tmp/local" 2>/dev/null
 local_full=$(since "$t")
 t=$(now)
-out=$("$bin" farm "$scene" --engine slurm --frames 85..96 --chunk 3 --output "$tmp/farm" --submit)
+out=$("$bin" farm "$scene" --engine slurm --frames 85..96 --chunk 3 --output "$farm" --submit)
 read -r prep arr <<<"$(job_ids "$out")"
 jobs_submitted="$prep $arr"
 # Task 0 renders frames 85..87: SIGKILL it as soon as frame 85 is finished (its PNG is written
 # last), so the kill lands while it renders frame 86; then requeue the failed task.
-wait_for 120 "task 0's first frame" test -f "$tmp/farm/duck-diffusion_0085.png"
+wait_for 120 "task 0's first frame" test -f "$farm/duck-diffusion_0085.png"
 # The batch script execs nephele, so the batch step's nephele process is the task.
 task0=$(scontrol -o show job "${arr}_0" | sed -n 's/^JobId=\([0-9]*\) .*/\1/p')
 victim=""
@@ -250,14 +252,14 @@ for _ in $(seq 300); do
 	sleep 0.1
 done
 [ "$state" = JobState=FAILED ] || fail "task 0 is not FAILED after SIGKILL: $(scontrol -o show job "${arr}_0")
-$(cat "$tmp/farm/logs/duck-diffusion_${arr}_0.log")"
-[ ! -e "$tmp/farm/duck-diffusion_0087.png" ] || fail "task 0 had finished its chunk before the kill"
+$(cat "$farm/logs/duck-diffusion_${arr}_0.log")"
+[ ! -e "$farm/duck-diffusion_0087.png" ] || fail "task 0 had finished its chunk before the kill"
 scontrol requeue "${arr}_0"
 wait_jobs 300 "$prep" "$arr"
 farm_full=$(since "$t")
 check_completed "$arr" 4
 grep -q "Restarts=1" <<<"$(scontrol -o show job "${arr}_0")" || fail "task 0 was not requeued"
-log0=$tmp/farm/logs/duck-diffusion_${arr}_0.log
+log0=$farm/logs/duck-diffusion_${arr}_0.log
 summaries=$(grep -c "frames rendered" "$log0" || true)
 [ "$summaries" = 1 ] || fail "task 0 finished $summaries times (expected the killed run to stop early):
 $(cat "$log0")"
@@ -271,7 +273,7 @@ for f in 85 86 87; do
 	[ "$(grep -c "^frame *$f/96:" "$log0")" = 1 ] || fail "frame $f was not rendered exactly once by task 0:
 $(cat "$log0")"
 done
-same_frames "$tmp/local" "$tmp/farm" 85 96
+same_frames "$tmp/local" "$farm" 85 96
 echo "array $arr: task 0 killed mid-frame and requeued; it resumed ($skipped frames already done, $rendered rendered); frames 85..96 equal the local render byte for byte"
 echo "task 0's log (both runs):"
 sed 's/^/  | /' "$log0"
