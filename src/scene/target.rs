@@ -73,7 +73,10 @@ pub fn load_target(
                 seed: *seed,
                 ..FitConfig::default()
             };
-            let out = pipeline::fit(&cfg, &loaded);
+            let out = pipeline::fit(&cfg, &loaded).map_err(|source| SceneError::Fit {
+                scene: scene.path.clone(),
+                source,
+            })?;
             crate::blobby::save_model(&cache, &out.model).map_err(model_err)?;
             Ok((out.model, TargetOrigin::Fitted(cache)))
         }
