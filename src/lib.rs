@@ -16,6 +16,7 @@ pub mod atomic;
 pub mod blobby;
 pub mod decompose;
 pub mod eval;
+pub mod export;
 pub mod geometry;
 pub mod mesh;
 pub mod pipeline;

@@ -29,6 +29,15 @@ pub struct Args {
     /// Print the wall time of each stage at the end.
     #[arg(long)]
     pub timings: bool,
+    /// Formats to write per frame, overriding the scene's `output.formats`: a comma-separated
+    /// list of exr, png, vdb (OpenVDB density grid) and vol (Mitsuba density grid).
+    #[arg(long, value_delimiter = ',', value_parser = parse_format)]
+    pub formats: Vec<scene::Format>,
+}
+
+fn parse_format(s: &str) -> Result<scene::Format, String> {
+    scene::Format::from_name(s)
+        .ok_or_else(|| format!("'{s}' is not a format (use exr, png, vdb or vol)"))
 }
 
 /// A `--frames` value: bounds left open are filled from the shot.
@@ -62,7 +71,10 @@ fn parse_frames(s: &str) -> Result<FrameArg, String> {
 
 /// Run `nephele render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = scene::load_scene(&args.scene)?;
+    let mut scene = scene::load_scene(&args.scene)?;
+    if !args.formats.is_empty() {
+        scene.file.output.formats = args.formats.clone();
+    }
     let total = scene.file.shot.frame_count();
     let frames = args
         .frames
