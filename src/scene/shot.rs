@@ -334,7 +334,10 @@ fn write_frame(
             grid = Some(g);
         }
         match format {
-            super::Format::Exr => render::output::write_exr(path, image).map_err(io(path))?,
+            super::Format::Exr => {
+                let meta = frame_metadata(scene, settings, frame);
+                render::output::write_exr_with(path, image, &meta).map_err(io(path))?
+            }
             super::Format::Png => {
                 render::output::write_png(path, image, settings).map_err(io(path))?
             }
@@ -357,6 +360,28 @@ fn write_frame(
         crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
     }
     Ok(())
+}
+
+/// The EXR attributes of frame `frame` (1-based): the camera's matrices and the strings
+/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/seed` (the scene's) and
+/// `nephele/version` (the crate's). Nothing depends on the run, so frames stay byte-identical.
+pub fn frame_metadata(
+    scene: &Scene,
+    settings: &RenderSettings,
+    frame: u32,
+) -> render::output::FrameMetadata {
+    let file = scene
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let strings = vec![
+        ("scene".to_string(), file),
+        ("frame".to_string(), frame.to_string()),
+        ("seed".to_string(), scene.file.seed.to_string()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+    ];
+    render::output::FrameMetadata::new(&settings.camera, settings.width, settings.height, strings)
 }
 
 /// A frame's blob list as RON (a list of `Blob`s, index = identity).
