@@ -347,11 +347,12 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     scene::render_shot(&s, &opts, &mut |_| {}).unwrap();
     assert!(out.join("shot_0006.vdb").is_file());
     let attrs = exr_attributes(&out.join("shot_0006.exr"));
-    let text = |k: &str| {
-        match attrs.other.get(&exr::meta::attribute::Text::new_or_panic(k)) {
-            Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
-            other => panic!("{k}: {other:?}"),
-        }
+    let text = |k: &str| match attrs
+        .other
+        .get(&exr::meta::attribute::Text::new_or_panic(k))
+    {
+        Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("{k}: {other:?}"),
     };
     assert_eq!(text("nephele/scene"), "shot.ron");
     assert_eq!(text("nephele/frame"), "6");
@@ -365,21 +366,37 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     let setup = scene::shot::shot_setup(&s, &opts).unwrap();
     let settings = scene::shot::frame_settings(&s, &prep, &setup, 5, false);
     let rays = nephele::render::camera::CameraRays::new(&settings.camera, 48, 30);
-    let eye = settings.camera.position.as_dvec3();
-    for p in [[3.0, -1.0, 2.0], [3.4, -0.7, 2.3], [2.5, -1.2, 1.8]] {
-        let c = row_times(p, &to_cam);
+    let (pixels, points) = known_points(&settings.camera);
+    for (want, p) in pixels.iter().zip(points) {
         let n = row_times(p, &to_ndc);
-        let (u, v) = (n[0] / n[3], n[1] / n[3]);
-        let (px, py) = (u * 48.0, v * 30.0);
-        assert!((0.0..48.0).contains(&px) && (0.0..30.0).contains(&py), "{px}, {py}");
-        // Camera space: +z forward, the distance along the view; x, y agree with the NDC.
-        let to_p = glam::DVec3::from(p) - eye;
+        let got = [n[0] / n[3] * 48.0, n[1] / n[3] * 30.0];
+        let off = (got[0] - want[0]).hypot(got[1] - want[1]);
+        assert!(
+            off < 1e-3,
+            "{p:?}: worldToNDC gives pixel {got:?}, renderer {want:?}"
+        );
+        // Camera space: +z is the distance along the view direction.
+        let c = row_times(p, &to_cam);
+        let to_p = glam::DVec3::from(p) - settings.camera.position.as_dvec3();
         assert!((c[2] - to_p.dot(rays.forward.as_dvec3())).abs() < 1e-4);
-        // The renderer's ray through that pixel passes through the point.
-        let d = rays.dir(px as f32, py as f32).as_dvec3();
-        let miss = to_p.normalize().cross(d).length();
-        assert!(miss < 1e-5, "{p:?}: pixel ({px}, {py}) ray misses by {miss}");
+        assert!(c[0] * (want[0] - 24.0) > 0.0 && c[1] * (want[1] - 15.0) < 0.0);
     }
+}
+
+/// Pixels near the corners and the centre of a 48×30 image, and world points on the renderer's
+/// rays through them (at different distances).
+fn known_points(camera: &Camera) -> (Vec<[f64; 2]>, Vec<[f64; 3]>) {
+    let rays = nephele::render::camera::CameraRays::new(camera, 48, 30);
+    let pixels = vec![[3.25, 2.5], [44.5, 27.75], [40.0, 4.0], [20.5, 16.25]];
+    let points = pixels
+        .iter()
+        .enumerate()
+        .map(|(n, px)| {
+            let d = rays.dir(px[0] as f32, px[1] as f32).as_dvec3();
+            (camera.position.as_dvec3() + d * (2.0 + n as f64)).to_array()
+        })
+        .collect();
+    (pixels, points)
 }
 
 #[test]
@@ -401,5 +418,114 @@ fn exr_bytes_are_identical_across_encodings() {
     // Every encoding builds fresh hash maps (new random orders); the bytes must not change.
     for _ in 0..8 {
         assert_eq!(encode_exr_with(&frame, Some(&meta)).unwrap(), first);
+    }
+}
+
+/// The python with Pixar's `pxr`: `$NEPHELE_USD_PYTHON`, else the venv `.ci/run` makes in
+/// `target/usd-venv`; `None` (after saying why) when neither exists.
+fn usd_python() -> Option<PathBuf> {
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/usd-venv/bin/python");
+    let python = std::env::var_os("NEPHELE_USD_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or(venv);
+    if python.is_file() {
+        Some(python)
+    } else {
+        eprintln!(
+            "skipping the USD check: {} not found (`python3 -m venv target/usd-venv && \
+             target/usd-venv/bin/pip install usd-core`, as .ci/run does)",
+            python.display()
+        );
+        None
+    }
+}
+
+#[test]
+fn usd_stage_camera_projects_like_the_renderer() {
+    use nephele::scene::{self, RenderOptions};
+    let (dir, path) = cloud_scene("usd", "output: (formats: [Vdb])");
+    let stage_path = dir.join("stage/shot.usda");
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("usd")
+        .arg(&path)
+        .arg("--frames-dir")
+        .arg(dir.join("out"))
+        .arg("-o")
+        .arg(&stage_path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let Some(python) = usd_python() else {
+        return;
+    };
+    let s = scene::load_scene(&path).unwrap();
+    let opts = RenderOptions {
+        output: Some(dir.join("out")),
+        ..RenderOptions::default()
+    };
+    let (model, _) = scene::load_target(&s, &dir.join("out")).unwrap();
+    let prep = scene::shot::prepare(&s, model).unwrap();
+    let setup = scene::shot::shot_setup(&s, &opts).unwrap();
+    let first = RenderOptions {
+        frames: Some((1, 1)),
+        ..opts.clone()
+    };
+    scene::render_shot(&s, &first, &mut |_| {}).unwrap();
+    for frame in [1u32, 5, 8] {
+        let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
+        let (pixels, points) = known_points(&settings.camera);
+        let mut cmd = Command::new(&python);
+        cmd.arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/usd_project.py"))
+            .arg(&stage_path)
+            .args(["48", "30", &frame.to_string()]);
+        points.iter().flatten().for_each(|c| {
+            cmd.arg(c.to_string());
+        });
+        let run = cmd.output().unwrap();
+        if run.status.code() == Some(3) {
+            eprintln!(
+                "skipping the USD check: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            return;
+        }
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        assert_eq!(
+            (j["start"].as_f64(), j["end"].as_f64()),
+            (Some(1.0), Some(8.0))
+        );
+        assert_eq!(
+            (j["fps"].as_f64(), j["tcps"].as_f64()),
+            (Some(8.0), Some(8.0))
+        );
+        assert_eq!(j["up_axis"], "Y");
+        assert_eq!(
+            (j["sun"].as_str(), j["sky"].as_str()),
+            (Some("DistantLight"), Some("DomeLight"))
+        );
+        assert_eq!(j["field_name"], "density");
+        assert_eq!(j["vdb"], format!("../out/shot_{frame:04}.vdb"));
+        // USD resolves the path of the frame rendered (only existing files resolve).
+        let resolved = j["vdb_resolved"].as_str().unwrap();
+        if frame == 1 {
+            assert_eq!(
+                std::fs::canonicalize(resolved).unwrap(),
+                std::fs::canonicalize(dir.join("out/shot_0001.vdb")).unwrap()
+            );
+        }
+        // The stage's camera puts each point on the pixel whose ray the renderer cast at it.
+        for (want, got) in pixels.iter().zip(j["pixels"].as_array().unwrap()) {
+            let got = [got[0].as_f64().unwrap(), got[1].as_f64().unwrap()];
+            let off = (got[0] - want[0]).hypot(got[1] - want[1]);
+            assert!(
+                off < 1e-3,
+                "frame {frame}: pixel {got:?}, renderer {want:?}"
+            );
+        }
     }
 }

@@ -6,6 +6,7 @@ pub mod fit;
 pub mod mesh;
 pub mod preview;
 pub mod render;
+pub mod usd;
 
 use clap::{Parser, Subcommand};
 
@@ -35,6 +36,8 @@ pub enum Command {
     Encode(codec::EncodeArgs),
     /// Decode a binary model back to a RON model file.
     Decode(codec::DecodeArgs),
+    /// Write a scene's shot as a USD stage: animated camera, sun, sky and the frame VDBs.
+    Usd(usd::Args),
 }
 
 /// Run the parsed command.
@@ -47,6 +50,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Preview(a) => preview::run(a),
         Command::Encode(a) => codec::run_encode(a),
         Command::Decode(a) => codec::run_decode(a),
+        Command::Usd(a) => usd::run(a),
     }
 }
 

@@ -9,6 +9,7 @@
 //! Units: world (the scene's, after the target transform); values are extinction per world unit.
 
 pub mod grid;
+pub mod usd;
 
 pub mod vdb;
 pub mod vol;

@@ -60,7 +60,8 @@ impl FrameMetadata {
         height: u32,
         strings: Vec<(String, String)>,
     ) -> FrameMetadata {
-        let (world_to_camera, world_to_ndc) = camera_matrices(camera, width, height);
+        let (world_to_camera, world_to_ndc) =
+            CameraFrame::new(camera, width, height).exr_matrices();
         FrameMetadata {
             world_to_camera: world_to_camera.map(|v| v as f32),
             world_to_ndc: world_to_ndc.map(|v| v as f32),
@@ -69,46 +70,74 @@ impl FrameMetadata {
     }
 }
 
-/// `(worldToCamera, worldToNDC)` of `camera` for a `width × height` image, row-major with
-/// row vectors. The camera's frame is read off the renderer's own rays: the centre ray is the
-/// view direction, and the rays through the right and top edge midpoints give the right and up
-/// axes with their image-plane scales.
-pub fn camera_matrices(camera: &super::Camera, width: u32, height: u32) -> ([f64; 16], [f64; 16]) {
-    let rays = CameraRays::new(camera, width, height);
-    let (w, h) = (width.max(1) as f32, height.max(1) as f32);
-    let f = glam::DVec3::from(Vec3::from(rays.forward));
-    let eye = glam::DVec3::from(Vec3::from(rays.position));
-    // A ray d through the image plane at distance 1 along f is d/(d·f) = f + offset.
-    let offset = |px: f32, py: f32| {
-        let d = glam::DVec3::from(Vec3::from(rays.dir(px, py)));
-        d / d.dot(f) - f
-    };
-    let right_half = offset(w, 0.5 * h); // right · tan(fov/2) · aspect
-    let up_half = offset(0.5 * w, 0.0); // up · tan(fov/2)
-    let (right, up) = (right_half.normalize(), up_half.normalize());
-    let mut view = [0.0; 16];
-    for (col, axis) in [right, up, f].into_iter().enumerate() {
-        for row in 0..3 {
-            view[row * 4 + col] = axis[row];
+/// The camera of a frame as the renderer casts its rays: eye, orthonormal axes and the
+/// image-plane half extents at distance 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraFrame {
+    /// Eye position.
+    pub eye: glam::DVec3,
+    /// Unit axis toward the image's right edge.
+    pub right: glam::DVec3,
+    /// Unit axis toward the image's top edge.
+    pub up: glam::DVec3,
+    /// Unit view direction.
+    pub forward: glam::DVec3,
+    /// `tan` of half the horizontal field of view.
+    pub tan_half_h: f64,
+    /// `tan` of half the vertical field of view.
+    pub tan_half_v: f64,
+}
+
+impl CameraFrame {
+    /// The frame of `camera` for a `width × height` image, read off the renderer's own rays
+    /// ([`CameraRays`]): the centre ray is the view direction, and the rays through the right
+    /// and top edge midpoints give the right and up axes with their image-plane scales.
+    pub fn new(camera: &super::Camera, width: u32, height: u32) -> CameraFrame {
+        let rays = CameraRays::new(camera, width, height);
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let forward = glam::DVec3::from(Vec3::from(rays.forward));
+        // A ray d through the image plane at distance 1 along f is d/(d·f) = f + offset.
+        let offset = |px: f32, py: f32| {
+            let d = glam::DVec3::from(Vec3::from(rays.dir(px, py)));
+            d / d.dot(forward) - forward
+        };
+        let (right_half, up_half) = (offset(w, 0.5 * h), offset(0.5 * w, 0.0));
+        CameraFrame {
+            eye: glam::DVec3::from(Vec3::from(rays.position)),
+            right: right_half.normalize(),
+            up: up_half.normalize(),
+            forward,
+            tan_half_h: right_half.length(),
+            tan_half_v: up_half.length(),
         }
-        view[12 + col] = -eye.dot(axis);
     }
-    view[15] = 1.0;
-    // Camera → homogeneous NDC: X = x·a + z/2, Y = −y·b + z/2, Z = 1, W = z.
-    let (a, b) = (0.5 / right_half.length(), 0.5 / up_half.length());
-    let proj = [
-        a, 0.0, 0.0, 0.0, //
-        0.0, -b, 0.0, 0.0, //
-        0.5, 0.5, 0.0, 1.0, //
-        0.0, 0.0, 1.0, 0.0,
-    ];
-    let mut ndc = [0.0; 16];
-    for r in 0..4 {
-        for c in 0..4 {
-            ndc[r * 4 + c] = (0..4).map(|k| view[r * 4 + k] * proj[k * 4 + c]).sum();
+
+    /// `(worldToCamera, worldToNDC)`, row-major with row vectors (see the module doc).
+    pub fn exr_matrices(&self) -> ([f64; 16], [f64; 16]) {
+        let mut view = [0.0; 16];
+        for (col, axis) in [self.right, self.up, self.forward].into_iter().enumerate() {
+            for row in 0..3 {
+                view[row * 4 + col] = axis[row];
+            }
+            view[12 + col] = -self.eye.dot(axis);
         }
+        view[15] = 1.0;
+        // Camera → homogeneous NDC: X = x·a + z/2, Y = −y·b + z/2, Z = 1, W = z.
+        let (a, b) = (0.5 / self.tan_half_h, 0.5 / self.tan_half_v);
+        let proj = [
+            a, 0.0, 0.0, 0.0, //
+            0.0, -b, 0.0, 0.0, //
+            0.5, 0.5, 0.0, 1.0, //
+            0.0, 0.0, 1.0, 0.0,
+        ];
+        let mut ndc = [0.0; 16];
+        for r in 0..4 {
+            for c in 0..4 {
+                ndc[r * 4 + c] = (0..4).map(|k| view[r * 4 + k] * proj[k * 4 + c]).sum();
+            }
+        }
+        (view, ndc)
     }
-    (view, ndc)
 }
 
 /// The EXR file's bytes with the attributes of `meta`, if any.
