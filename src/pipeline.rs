@@ -14,6 +14,12 @@ use crate::mesh::LoadedMesh;
 use crate::mesh::sample::sample_surface;
 use crate::progress::Timings;
 
+/// Version of what [`fit`] produces. Bump it with every change that alters the model a given
+/// [`FitConfig`] and mesh fit to (optimiser, decomposition, sampling, defaults): the scenes'
+/// fitted-target cache is keyed on it, so old cache files are then refitted instead of reused.
+/// A test in `scene::target` pins a small fit's output to this number.
+pub const FIT_ALGORITHM_VERSION: u32 = 1;
+
 /// How the blobs' parameters are optimised after decomposition.
 #[derive(Clone, Debug)]
 pub enum Optimisation {
