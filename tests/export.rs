@@ -529,3 +529,82 @@ fn usd_stage_camera_projects_like_the_renderer() {
         }
     }
 }
+
+#[test]
+fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
+    use nephele::scene::{self, RenderOptions, SceneError};
+    for bad in ["0.0", "-0.5", "inf"] {
+        let (_dir, path) = cloud_scene("voxel-bad", &format!("output: (formats: [Vdb], voxel: {bad})"));
+        let err = scene::load_scene(&path).unwrap_err();
+        assert!(
+            matches!(&err, SceneError::Invalid { field, .. } if field == "output.voxel"),
+            "{bad}: {err}"
+        );
+    }
+    // Absurdly small: more than 2^31 voxels over the target's box. Nothing is written.
+    let (dir, path) = cloud_scene("voxel-tiny", "output: (formats: [Exr, Vdb], voxel: 0.0001)");
+    let s = scene::load_scene(&path).unwrap();
+    let out = dir.join("out");
+    let opts = RenderOptions {
+        output: Some(out.clone()),
+        ..RenderOptions::default()
+    };
+    let err = scene::render_shot(&s, &opts, &mut |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("output.voxel") && text.contains("larger voxel"), "{text}");
+    let frames: Vec<_> = std::fs::read_dir(&out)
+        .map(|d| d.map(|e| e.unwrap().file_name()).collect())
+        .unwrap_or_default();
+    assert!(
+        frames.iter().all(|n| n.to_string_lossy().starts_with("target")),
+        "{frames:?}"
+    );
+    // The command line says so and exits non-zero; an unknown --formats entry too.
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("output.voxel"));
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--formats", "exr,obj"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("'obj' is not a format"));
+}
+
+#[test]
+fn render_formats_flag_writes_the_grids() {
+    let (dir, path) = cloud_scene("formats", "");
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "8", "--formats", "vdb,VOL"])
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("shot_0008.vdb").is_file() && out.join("shot_0008.vol").is_file());
+    assert!(!out.join("shot_0008.png").exists());
+    // Same frame, same bytes (the VDB's UUID comes from the seed and frame).
+    let first = std::fs::read(out.join("shot_0008.vdb")).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "8", "--formats", "vdb", "--force"])
+        .arg("-o")
+        .arg(&out)
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert_eq!(std::fs::read(out.join("shot_0008.vdb")).unwrap(), first);
+}
