@@ -534,7 +534,10 @@ fn usd_stage_camera_projects_like_the_renderer() {
 fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
     use nephele::scene::{self, RenderOptions, SceneError};
     for bad in ["0.0", "-0.5", "inf"] {
-        let (_dir, path) = cloud_scene("voxel-bad", &format!("output: (formats: [Vdb], voxel: {bad})"));
+        let (_dir, path) = cloud_scene(
+            "voxel-bad",
+            &format!("output: (formats: [Vdb], voxel: {bad})"),
+        );
         let err = scene::load_scene(&path).unwrap_err();
         assert!(
             matches!(&err, SceneError::Invalid { field, .. } if field == "output.voxel"),
@@ -551,12 +554,17 @@ fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
     };
     let err = scene::render_shot(&s, &opts, &mut |_| {}).unwrap_err();
     let text = err.to_string();
-    assert!(text.contains("output.voxel") && text.contains("larger voxel"), "{text}");
+    assert!(
+        text.contains("output.voxel") && text.contains("larger voxel"),
+        "{text}"
+    );
     let frames: Vec<_> = std::fs::read_dir(&out)
         .map(|d| d.map(|e| e.unwrap().file_name()).collect())
         .unwrap_or_default();
     assert!(
-        frames.iter().all(|n| n.to_string_lossy().starts_with("target")),
+        frames
+            .iter()
+            .all(|n| n.to_string_lossy().starts_with("target")),
         "{frames:?}"
     );
     // The command line says so and exits non-zero; an unknown --formats entry too.
@@ -607,4 +615,54 @@ fn render_formats_flag_writes_the_grids() {
         .unwrap();
     assert!(o.status.success());
     assert_eq!(std::fs::read(out.join("shot_0008.vdb")).unwrap(), first);
+}
+
+/// Benchmark (ignored): per-frame density grid, VDB encoding and atomic write at the default
+/// voxel size (target diagonal / 256) on the shipped duck scenes.
+/// `cargo test --release --test export -- --ignored --nocapture bench`
+#[test]
+#[ignore]
+fn bench_duck_vdb_frames() {
+    use nephele::scene::{self, RenderOptions};
+    use std::time::Instant;
+    let cache = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-export");
+    for (file, frames) in [
+        ("duck-diffusion.ron", [1u32, 48, 96]),
+        ("duck-aggregation.ron", [1, 60, 120]),
+    ] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(file);
+        let s = scene::load_scene(&path).unwrap();
+        let opts = RenderOptions {
+            output: Some(cache.clone()),
+            ..RenderOptions::default()
+        };
+        let (model, _) = scene::load_target(&s, &cache).unwrap();
+        let prep = scene::shot::prepare(&s, model).unwrap();
+        let setup = scene::shot::shot_setup(&s, &opts).unwrap();
+        let voxel = export::voxel_size(None, &prep.bounds);
+        for frame in frames {
+            let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
+            let blobs = prep.plan.frame(frame as usize - 1);
+            let t0 = Instant::now();
+            let grid = export::frame_grid(&settings, &blobs, voxel).unwrap();
+            let t1 = Instant::now();
+            let bytes = export::vdb::encode_vdb(&grid, export::GRID_NAME, 1);
+            let t2 = Instant::now();
+            let out = cache.join(format!("bench_{frame:04}.vdb"));
+            nephele::atomic::write_bytes_atomically(&out, &bytes).unwrap();
+            let t3 = Instant::now();
+            eprintln!(
+                "{file} frame {frame:>3}: voxel {voxel:.5}, {} active voxels in {} leaves, \
+                 {:.2} MB; sample {:.3} s, encode {:.3} s, write {:.3} s",
+                grid.active_count(),
+                grid.leaves.len(),
+                bytes.len() as f64 / 1e6,
+                (t1 - t0).as_secs_f64(),
+                (t2 - t1).as_secs_f64(),
+                (t3 - t2).as_secs_f64()
+            );
+        }
+    }
 }
