@@ -336,7 +336,7 @@ fn row_times(p: [f64; 3], m: &[f32; 16]) -> [f64; 4] {
 #[test]
 fn exr_carries_the_camera_and_reprojects_a_point() {
     use nephele::scene::{self, RenderOptions};
-    let (dir, path) = cloud_scene("exr", "output: (formats: [Exr, Vdb])");
+    let (dir, path) = cloud_scene("exr", "output: (formats: [Exr, Vdb], voxel: 0.03)");
     let s = scene::load_scene(&path).unwrap();
     let out = dir.join("out");
     let opts = RenderOptions {
@@ -443,7 +443,7 @@ fn usd_python() -> Option<PathBuf> {
 #[test]
 fn usd_stage_camera_projects_like_the_renderer() {
     use nephele::scene::{self, RenderOptions};
-    let (dir, path) = cloud_scene("usd", "output: (formats: [Vdb])");
+    let (dir, path) = cloud_scene("usd", "output: (formats: [Vdb], voxel: 0.03)");
     let stage_path = dir.join("stage/shot.usda");
     let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
         .arg("usd")
@@ -589,32 +589,57 @@ fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
 
 #[test]
 fn render_formats_flag_writes_the_grids() {
-    let (dir, path) = cloud_scene("formats", "");
+    let (dir, path) = cloud_scene("formats", "output: (voxel: 0.03)");
     let out = dir.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
-        .arg("render")
-        .arg(&path)
-        .args(["--frames", "8", "--formats", "vdb,VOL"])
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(out.join("shot_0008.vdb").is_file() && out.join("shot_0008.vol").is_file());
+    let render = |formats: &str, threads: &str| {
+        let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+            .arg("render")
+            .arg(&path)
+            .args(["--frames", "8", "--force", "--formats", formats])
+            .arg("-o")
+            .arg(&out)
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    render("exr,vdb,VOL", "2");
+    let vdb = out.join("shot_0008.vdb");
+    assert!(vdb.is_file() && out.join("shot_0008.vol").is_file());
     assert!(!out.join("shot_0008.png").exists());
-    // Same frame, same bytes (the VDB's UUID comes from the seed and frame).
-    let first = std::fs::read(out.join("shot_0008.vdb")).unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
-        .arg("render")
-        .arg(&path)
-        .args(["--frames", "8", "--formats", "vdb", "--force"])
-        .arg("-o")
-        .arg(&out)
-        .env("RAYON_NUM_THREADS", "1")
-        .output()
-        .unwrap();
-    assert!(o.status.success());
-    assert_eq!(std::fs::read(out.join("shot_0008.vdb")).unwrap(), first);
+    // Same frame, same bytes, in another process at another thread count (the VDB's UUID comes
+    // from the seed and frame; the EXR's attributes are sorted).
+    let first = [
+        std::fs::read(&vdb).unwrap(),
+        std::fs::read(out.join("shot_0008.exr")).unwrap(),
+    ];
+    render("exr,vdb", "1");
+    let again = [
+        std::fs::read(&vdb).unwrap(),
+        std::fs::read(out.join("shot_0008.exr")).unwrap(),
+    ];
+    assert!(first == again, "frame files differ between runs");
+    // The last frame is the target: OpenVDB's world box of the active voxels against the
+    // target's box (the soft edge and the noise reach a little beyond the iso-surface).
+    let Some(dump) = openvdb_read(&vdb) else {
+        return;
+    };
+    let target = nephele::animate::blob_bounds(&cloud());
+    let diag = target.diagonal();
+    let wb = &dump.header["world_bbox"];
+    for a in 0..3 {
+        let (min, max) = (wb[0][a].as_f64().unwrap(), wb[1][a].as_f64().unwrap());
+        let (tmin, tmax) = (target.min[a], target.max[a]);
+        assert!(
+            (min - tmin).abs() < 0.08 * diag && (max - tmax).abs() < 0.08 * diag,
+            "axis {a}: active {min}..{max}, target {tmin}..{tmax}"
+        );
+    }
+    let [lo, hi] = [
+        &dump.header["value_range"][0],
+        &dump.header["value_range"][1],
+    ];
+    assert!(lo.as_f64().unwrap() > 0.0 && hi.as_f64().unwrap().is_finite());
 }
 
 /// Benchmark (ignored): per-frame density grid, VDB encoding and atomic write at the default
