@@ -1,4 +1,4 @@
-//! Cloud animation schemes (paper §5.2, DESIGN.md §6): aggregation (pieces of cloud gather into
+//! Cloud animation schemes (paper §5.2; docs/ARCHITECTURE.md, Animation): aggregation (pieces of cloud gather into
 //! the target) and diffusion (the target spreads from one piece).
 //!
 //! In: a fitted [`crate::blobby::BlobModel`], the scheme's settings and the shot's [`Timeline`].

@@ -83,13 +83,13 @@ pub enum Target {
 }
 
 fn default_blobs() -> usize {
-    300
+    crate::pipeline::FitConfig::DEFAULT_BLOBS
 }
 fn default_candidates() -> usize {
-    2500
+    crate::pipeline::FitConfig::DEFAULT_CANDIDATES
 }
 fn default_samples() -> usize {
-    60_000
+    crate::pipeline::FitConfig::DEFAULT_SAMPLES
 }
 
 /// The camera: automatic framing of the target, or fixed; optionally orbiting.
@@ -392,14 +392,14 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         samples,
         ..
     } = &s.target
-        && (*blobs == 0 || *candidates == 0 || *samples < 100)
     {
-        return Err(bad(
-            "target",
-            format!(
-                "need blobs ≥ 1, candidates ≥ 1 and samples ≥ 100, got {blobs}, {candidates}, {samples}"
-            ),
-        ));
+        let fit = crate::pipeline::FitConfig {
+            blobs: *blobs,
+            candidates: *candidates,
+            samples: *samples,
+            ..Default::default()
+        };
+        fit.validate().map_err(|e| bad("target", e.to_string()))?;
     }
     s.animation.validate().map_err(|e| match e {
         crate::animate::AnimateError::Invalid { field, message } => bad(&field, message),

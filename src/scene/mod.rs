@@ -73,6 +73,14 @@ pub enum SceneError {
         /// Underlying error.
         source: crate::mesh::MeshError,
     },
+    /// The target mesh could not be fitted (it encloses no volume).
+    #[error("{scene}: target fit: {source}")]
+    Fit {
+        /// Scene file.
+        scene: PathBuf,
+        /// Underlying error.
+        source: crate::pipeline::FitError,
+    },
     /// The target model could not be read.
     #[error("{scene}: target model: {source}")]
     Model {

@@ -70,7 +70,10 @@ pub fn load_target(
                 scene: scene.path.clone(),
                 source,
             })?;
-            let out = pipeline::fit(&cfg, &loaded);
+            let out = pipeline::fit(&cfg, &loaded).map_err(|source| SceneError::Fit {
+                scene: scene.path.clone(),
+                source,
+            })?;
             crate::blobby::save_model(&cache, &out.model).map_err(model_err)?;
             Ok((out.model, TargetOrigin::Fitted(cache)))
         }
@@ -78,11 +81,13 @@ pub fn load_target(
 }
 
 /// The fitted-target cache key of a mesh (`identity`: its file's bytes or `builtin:` name)
-/// fitted with `cfg`: the whole configuration as written by `Debug` (every field, nested
-/// settings included, floats in round-trip precision), [`FIT_ALGORITHM_VERSION`] and the model
-/// format version.
+/// fitted with `cfg`: the whole configuration serialized as JSON (every field, nested settings
+/// included, floats in round-trip precision), [`FIT_ALGORITHM_VERSION`] and the model format
+/// version.
 pub fn fit_cache_key(identity: &[u8], cfg: &FitConfig) -> u64 {
-    let settings = format!("fit v{FIT_ALGORITHM_VERSION}; model v{MODEL_VERSION}; {cfg:?}");
+    // A plain struct always serializes; `Debug` would serve as well should that ever fail.
+    let config = serde_json::to_string(cfg).unwrap_or_else(|_| format!("{cfg:?}"));
+    let settings = format!("fit v{FIT_ALGORITHM_VERSION}; model v{MODEL_VERSION}; {config}");
     fnv1a(&[identity, settings.as_bytes()])
 }
 
@@ -157,7 +162,7 @@ mod tests {
             samples: 3000,
             ..FitConfig::default()
         };
-        let model = pipeline::fit(&cfg, &mesh).model;
+        let model = pipeline::fit(&cfg, &mesh).unwrap().model;
         let bits: Vec<u8> = model
             .blobs
             .iter()
@@ -174,7 +179,7 @@ mod tests {
         let output = fnv1a(&[&bits]);
         assert_eq!(
             (FIT_ALGORITHM_VERSION, output),
-            (1, 15_531_787_507_555_447_779),
+            (2, 16_409_085_176_781_328_839),
             "the fit's output changed: bump FIT_ALGORITHM_VERSION and re-pin"
         );
     }
