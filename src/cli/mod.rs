@@ -8,6 +8,7 @@ pub mod mesh;
 pub mod prepare;
 pub mod preview;
 pub mod render;
+pub mod usd;
 
 use clap::{Parser, Subcommand};
 
@@ -41,6 +42,8 @@ pub enum Command {
     Prepare(prepare::Args),
     /// Write (and with --submit, submit) a farm's jobs: prepare, then one task per frame chunk.
     Farm(farm::Args),
+    /// Write a scene's shot as a USD stage: animated camera, sun, sky and the frame VDBs.
+    Usd(usd::Args),
 }
 
 /// Run the parsed command.
@@ -55,6 +58,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Decode(a) => codec::run_decode(a),
         Command::Prepare(a) => prepare::run(a),
         Command::Farm(a) => farm::run(a),
+        Command::Usd(a) => usd::run(a),
     }
 }
 

@@ -34,6 +34,10 @@ pub struct Args {
     /// AWS_BATCH_JOB_ARRAY_INDEX). See README "Rendering on a farm".
     #[arg(long, value_parser = parse_task)]
     pub task: Option<TaskArg>,
+    /// Formats to write per frame, overriding the scene's `output.formats`: a comma-separated
+    /// list of exr, png, vdb (OpenVDB density grid) and vol (Mitsuba density grid).
+    #[arg(long, value_delimiter = ',', value_parser = parse_format)]
+    pub formats: Vec<scene::Format>,
 }
 
 /// A `--task` value: chunk `index` of `count`; `index` is `None` for `auto`.
@@ -54,6 +58,11 @@ fn parse_task(s: &str) -> Result<TaskArg, String> {
         i => Some(i.parse::<u32>().map_err(|_| usage())?),
     };
     Ok(TaskArg { index, count })
+}
+
+fn parse_format(s: &str) -> Result<scene::Format, String> {
+    scene::Format::from_name(s)
+        .ok_or_else(|| format!("'{s}' is not a format (use exr, png, vdb or vol)"))
 }
 
 /// A `--frames` value: bounds left open are filled from the shot.
@@ -94,7 +103,10 @@ pub(crate) fn parse_frames(s: &str) -> Result<FrameArg, String> {
 
 /// Run `nephele render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = scene::load_scene(&args.scene)?;
+    let mut scene = scene::load_scene(&args.scene)?;
+    if !args.formats.is_empty() {
+        scene.file.output.formats = args.formats.clone();
+    }
     let total = scene.file.shot.frame_count();
     let frames = args.frames.map(|f| f.resolve(total));
     let mut opts = RenderOptions {

@@ -1,7 +1,7 @@
 //! Scene files (RON): a target, an animation scheme, camera, lighting, material, shot and
 //! output settings; and rendering a shot to frame files with resume and frame ranges.
 //!
-//! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png` (and optionally
+//! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png/.vdb/.vol` (and optionally
 //! `<name>_0001.blobs.ron`), written atomically so that a frame whose files all exist is
 //! finished.
 //!
