@@ -1,32 +1,31 @@
-//! The fitting pipeline, mesh → blob model: surface samples → seeds and candidate growth →
-//! greedy selection → blobs → optimisation. Each stage is timed.
+//! The fitting pipeline, mesh → blob model (see docs/ARCHITECTURE.md): the mesh's solid
+//! (winding number) → surface samples → seeds and candidate growth → greedy selection →
+//! optimisation ([`crate::blobby::optimise::optimise`]). Each stage is timed.
 
-use glam::DVec3;
+use serde::Serialize;
 
-use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::model_file::MODEL_VERSION;
-use crate::blobby::optimise::{
-    Budget, FullConfig, FullProblem, drop_dead, drop_negligible, far_field_points,
-};
-use crate::blobby::{Blob, BlobField, BlobModel, SourceInfo, THRESHOLD};
+use crate::blobby::optimise::{self, Start, Target};
+use crate::blobby::{BlobModel, SourceInfo, THRESHOLD};
 use crate::decompose::{self, DecomposeConfig, ObstacleShift, Primitive};
 use crate::mesh::LoadedMesh;
-use crate::mesh::sample::sample_surface;
+use crate::mesh::sample::{SurfaceSamples, sample_surface};
+use crate::mesh::winding::WindingNumber;
 use crate::progress::Timings;
 
-/// How the blobs' parameters are optimised after decomposition.
-#[derive(Clone, Debug)]
-pub enum Optimisation {
-    /// Keep the starting `A`, `B = (1+A)/A`.
-    None,
-    /// The paper's per-blob Nelder–Mead on `(A, B)`.
-    Faithful(FaithfulConfig),
-    /// Beyond the paper: the faithful pass, then every parameter by block Levenberg–Marquardt.
-    Full(FaithfulConfig, FullConfig),
-}
+pub use crate::blobby::optimise::Optimisation;
 
-/// Settings of a fit. Lengths are relative to the mesh's bounding-box diagonal.
-#[derive(Clone, Debug)]
+/// Version of the fitting algorithm: part of a fitted model's cache key with the serialized
+/// [`FitConfig`]. Bump it whenever a change makes `fit` give a different model for the same
+/// config (a cached fit from an older build is then redone, not reused).
+/// History: 1 = inside/outside by parry's pseudo-normal test and a flood fill; 2 = by the
+/// generalized winding number.
+pub const FIT_ALGORITHM_VERSION: u32 = 2;
+
+/// Settings of a fit. Lengths are relative to the mesh's bounding-box diagonal. The defaults
+/// of the counts every front end offers (CLI, scene files) are the `DEFAULT_*` constants, and
+/// [`FitConfig::validate`] is their one check.
+#[derive(Clone, Debug, Serialize)]
 pub struct FitConfig {
     /// Blobs to select (upper bound; selection may stop earlier when coverage saturates).
     pub blobs: usize,
@@ -52,23 +51,103 @@ pub struct FitConfig {
     pub seed: u64,
 }
 
+impl FitConfig {
+    /// Default blob budget.
+    pub const DEFAULT_BLOBS: usize = 300;
+    /// Default number of candidate seeds.
+    pub const DEFAULT_CANDIDATES: usize = 2500;
+    /// Default number of surface samples.
+    pub const DEFAULT_SAMPLES: usize = 60_000;
+    /// Fewest surface samples a fit accepts.
+    pub const MIN_SAMPLES: usize = 100;
+
+    /// Check the counts: at least one blob and one candidate, at least
+    /// [`FitConfig::MIN_SAMPLES`] samples.
+    pub fn validate(&self) -> Result<(), FitError> {
+        let bad = |what: &str, min: usize, got: usize| {
+            Err(FitError::Config(format!(
+                "{what} must be at least {min}, got {got}"
+            )))
+        };
+        if self.blobs < 1 {
+            return bad("blobs", 1, self.blobs);
+        }
+        if self.candidates < 1 {
+            return bad("candidates", 1, self.candidates);
+        }
+        if self.samples < Self::MIN_SAMPLES {
+            return bad("samples", Self::MIN_SAMPLES, self.samples);
+        }
+        Ok(())
+    }
+}
+
 impl Default for FitConfig {
     fn default() -> Self {
         let d = DecomposeConfig::default();
         FitConfig {
-            blobs: 300,
-            candidates: d.candidates,
-            samples: 60_000,
+            blobs: Self::DEFAULT_BLOBS,
+            candidates: Self::DEFAULT_CANDIDATES,
+            samples: Self::DEFAULT_SAMPLES,
             primitive: d.primitive,
             shift: d.shift,
             epsilon: d.epsilon,
             voxels: d.voxels,
             curvature_weight: d.curvature_weight,
             initial_a: 1.0,
-            optimisation: Optimisation::Full(FaithfulConfig::default(), FullConfig::default()),
+            optimisation: Optimisation::Full(Default::default(), Default::default()),
             seed: 1,
         }
     }
+}
+
+/// Why a fit cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// A setting is out of range.
+    #[error("fit settings: {0}")]
+    Config(String),
+    /// The mesh bounds no solid.
+    #[error(
+        "{mesh}: the mesh encloses no volume: its generalized winding number is nowhere above \
+         {ENCLOSED} next to its surface (largest {max_winding:.3}); it is a lone open sheet or \
+         loose faces. Give the surface a thickness or close it (a scan with holes is fine)"
+    )]
+    NoVolume {
+        /// The mesh's source.
+        mesh: String,
+        /// The largest winding number found just behind the surface.
+        max_winding: f64,
+    },
+}
+
+/// A mesh encloses a volume when its winding number exceeds this just behind its surface
+/// somewhere. Exactly ½ is a flat sheet's value; the margin rejects nearly flat ones.
+pub const ENCLOSED: f64 = 0.6;
+
+/// The largest winding number at the samples moved `depth` behind the surface (along `−n`),
+/// stopping at the first chunk that exceeds [`ENCLOSED`]. `w` is harmonic off the mesh, so
+/// the region `w > ½` reaches its maximum on the mesh: if it exists, points just behind the
+/// surface find it.
+fn max_winding_behind(solid: &WindingNumber, samples: &SurfaceSamples, depth: f64) -> f64 {
+    use rayon::prelude::*;
+    let mut max = f64::NEG_INFINITY;
+    for (p, n) in samples
+        .positions
+        .chunks(1024)
+        .zip(samples.normals.chunks(1024))
+    {
+        let chunk = p
+            .par_iter()
+            .zip(n)
+            .map(|(&p, &n)| solid.at(p - depth * n))
+            .reduce(|| f64::NEG_INFINITY, f64::max);
+        max = max.max(chunk);
+        if max > ENCLOSED {
+            break;
+        }
+    }
+    max
 }
 
 /// Counts and objective values of a fit, for reports.
@@ -101,12 +180,22 @@ pub struct FitOutput {
     pub timings: Timings,
 }
 
-/// Fit a blob model to a loaded, validated mesh.
-pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
+/// Fit a blob model to a loaded, validated mesh. Fails when the settings are out of range or
+/// the mesh encloses no volume.
+pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> Result<FitOutput, FitError> {
+    cfg.validate()?;
     let mesh = &input.mesh;
     let bounds = mesh.bounds();
     let mut timings = Timings::default();
+    let solid = timings.stage("winding", || WindingNumber::new(mesh));
     let samples = timings.stage("samples", || sample_surface(mesh, cfg.samples, cfg.seed));
+    let max_winding = max_winding_behind(&solid, &samples, cfg.epsilon * bounds.diagonal());
+    if !(max_winding > ENCLOSED) {
+        return Err(FitError::NoVolume {
+            mesh: input.source.clone(),
+            max_winding,
+        });
+    }
     let dcfg = DecomposeConfig {
         candidates: cfg.candidates,
         shift: cfg.shift,
@@ -117,46 +206,26 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
         max_selected: cfg.blobs,
         ..DecomposeConfig::default()
     };
-    let candidates = timings.stage("grow", || decompose::grow_candidates(&dcfg, mesh, &samples));
+    let candidates = timings.stage("grow", || {
+        decompose::grow_candidates(&dcfg, mesh, &solid, &samples)
+    });
     let order = timings.stage("select", || {
         decompose::select_greedy(&dcfg, &bounds, &candidates)
     });
-    let mut blobs: Vec<Blob> = order
-        .iter()
-        .map(|&i| Blob::from_ellipsoid(&candidates[i].ellipsoid, cfg.initial_a))
-        .collect();
-    let points: &[DVec3] = &samples.positions;
-    let (before, after) = timings.stage("optimise", || match &cfg.optimisation {
-        Optimisation::None => {
-            let o = objective(&BlobField::new(&blobs, THRESHOLD), points);
-            (o, o)
-        }
-        Optimisation::Faithful(f) => optimise_faithful(f, &mut blobs, points, THRESHOLD),
-        Optimisation::Full(f, full) => {
-            let (before, _) = optimise_faithful(f, &mut blobs, points, THRESHOLD);
-            let far = far_field_points(mesh, 40);
-            let problem = FullProblem::new(full, &samples, &far, bounds.diagonal(), THRESHOLD);
-            let mut anchors = blobs.clone();
-            problem.optimise(&mut blobs, &anchors, full.sweeps, None);
-            // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them,
-            // keeping the selection order of the rest; their budget is spent where the model
-            // falls shortest. Blobs left negligible at the end go too (bytes and render time).
-            let mut used = vec![false; candidates.len()];
-            for (b, &i) in blobs.iter().zip(&order) {
-                used[i] = b.is_live();
-            }
-            drop_dead(&mut blobs, &mut anchors);
-            let ellipsoids: Vec<_> = candidates.iter().map(|c| c.ellipsoid).collect();
-            let budget = Budget {
-                blobs: cfg.blobs,
-                candidates: &ellipsoids,
-                initial_a: cfg.initial_a,
-            };
-            budget.spend(&problem, &mut blobs, &mut anchors, &mut used, points);
-            drop_negligible(&mut blobs, THRESHOLD);
-            let after = objective(&BlobField::new(&blobs, THRESHOLD), points);
-            (before, after)
-        }
+    let ellipsoids: Vec<_> = candidates.iter().map(|c| c.ellipsoid).collect();
+    let target = Target {
+        mesh,
+        samples: &samples,
+        solid: &solid,
+    };
+    let start = Start {
+        candidates: &ellipsoids,
+        selected: &order,
+        initial_a: cfg.initial_a,
+        max_blobs: cfg.blobs,
+    };
+    let optimised = timings.stage("optimise", || {
+        optimise::optimise(&cfg.optimisation, &target, &start, THRESHOLD)
     });
     let mut radii: Vec<f64> = candidates.iter().map(|c| c.sphere_radius).collect();
     radii.sort_by(f64::total_cmp);
@@ -172,22 +241,22 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> FitOutput {
             faces: mesh.triangles.len(),
         },
         seed: cfg.seed,
-        blobs,
+        blobs: optimised.blobs,
     };
     let stats = FitStats {
-        samples: points.len(),
+        samples: samples.positions.len(),
         candidates: candidates.len(),
         selected: order.len(),
         live: model.live_count(),
-        objective_before: before,
-        objective_after: after,
+        objective_before: optimised.objective_before,
+        objective_after: optimised.objective_after,
         median_sphere_radius: median,
     };
-    FitOutput {
+    Ok(FitOutput {
         model,
         stats,
         timings,
-    }
+    })
 }
 
 /// One round of [`fit_to_error`]: the blob budget tried and the Hausdorff error it gave.
@@ -204,13 +273,13 @@ pub struct BudgetRound {
 /// Fit with a growing blob budget (×1.5 a round, from `cfg.blobs`, at most `max_blobs`) until
 /// the Hausdorff error of the polygonized model against the mesh, measured by Metro, is at most
 /// `max_error_pct` % of the diagonal. Stops early when the selection saturates (asking for more
-/// blobs no longer adds any). Returns the last fit and every round.
+/// blobs no longer adds any). Returns the last fit and every round, or the first fit's error.
 pub fn fit_to_error(
     cfg: &FitConfig,
     input: &LoadedMesh,
     max_error_pct: f64,
     max_blobs: usize,
-) -> (FitOutput, Vec<BudgetRound>) {
+) -> Result<(FitOutput, Vec<BudgetRound>), FitError> {
     use crate::blobby::polygonize::polygonize;
     use crate::eval::metro::{MetroConfig, compare};
     // A budget decision needs the worst gap, not a publication-grade mean: every vertex of
@@ -230,7 +299,7 @@ pub fn fit_to_error(
                 ..cfg.clone()
             },
             input,
-        );
+        )?;
         let surface = polygonize(&out.model.field(), 160);
         let error = compare(&input.mesh, &surface, &metro).hausdorff_pct;
         rounds.push(BudgetRound {
@@ -240,7 +309,7 @@ pub fn fit_to_error(
         });
         let saturated = out.stats.selected < blobs;
         if error <= max_error_pct || blobs >= max_blobs || saturated {
-            return (out, rounds);
+            return Ok((out, rounds));
         }
         blobs = (blobs + blobs / 2).min(max_blobs);
     }

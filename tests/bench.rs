@@ -1,4 +1,4 @@
-//! Benchmark (DESIGN.md §7): fit every model in `../shared/models` at several blob counts with
+//! Benchmark (docs/ARCHITECTURE.md, Evaluation and codec): fit every model in `../shared/models` at several blob counts with
 //! ellipsoids and with spheres (also spheres at twice the count, i.e. about equal bytes: a
 //! sphere costs 5 numbers in the codec, an ellipsoid 10), evaluate each fit with Metro, and print
 //! one table.
@@ -135,7 +135,7 @@ fn run_one(
             ..FitConfig::default()
         };
         let t = Instant::now();
-        let out = fit(&cfg, &loaded);
+        let out = fit(&cfg, &loaded).map_err(|e| e.to_string())?;
         let fit_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let eval_cfg = EvalConfig {

@@ -317,7 +317,7 @@ fn quantized_extra_error_on_a_fitted_duck() {
         optimisation: Optimisation::Faithful(FaithfulConfig::default()),
         ..FitConfig::default()
     };
-    let m = fit(&cfg, &loaded).model;
+    let m = fit(&cfg, &loaded).unwrap().model;
     let lossless = codec::encode(&m, Encoding::Lossless);
     assert_eq!(
         codec::encode(

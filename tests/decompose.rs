@@ -8,6 +8,7 @@ use nephele::decompose::{self, Candidate, DecomposeConfig, ObstacleShift, Primit
 use nephele::geometry::Aabb;
 use nephele::mesh::Mesh;
 use nephele::mesh::sample::{SurfaceSamples, sample_surface};
+use nephele::mesh::winding::WindingNumber;
 
 /// Icosphere subdivided `level` times, mapped by `f`.
 fn sphere_mesh(level: usize, f: impl Fn(DVec3) -> DVec3) -> Mesh {
@@ -30,7 +31,7 @@ fn union(a: Mesh, b: Mesh) -> Mesh {
 
 fn grow(mesh: &Mesh, samples: usize, cfg: &DecomposeConfig) -> (SurfaceSamples, Vec<Candidate>) {
     let s = sample_surface(mesh, samples, 3);
-    let c = decompose::grow_candidates(cfg, mesh, &s);
+    let c = decompose::grow_candidates(cfg, mesh, &WindingNumber::new(mesh), &s);
     (s, c)
 }
 
@@ -258,7 +259,7 @@ fn sampling_is_deterministic_and_thread_count_independent() {
             .build()
             .unwrap()
             .install(|| {
-                let c = decompose::grow_candidates(&cfg, &mesh, &one);
+                let c = decompose::grow_candidates(&cfg, &mesh, &WindingNumber::new(&mesh), &one);
                 let o = decompose::select_greedy(&cfg, &mesh.bounds(), &c);
                 (c.iter().map(|c| c.ellipsoid).collect::<Vec<_>>(), o)
             })
@@ -285,7 +286,7 @@ fn bunny_fit_selects_300_with_large_spheres() {
         optimisation: nephele::pipeline::Optimisation::Faithful(Default::default()),
         ..Default::default()
     };
-    let out = nephele::pipeline::fit(&cfg, &loaded);
+    let out = nephele::pipeline::fit(&cfg, &loaded).unwrap();
     let s = &out.stats;
     eprintln!("{s:?}\n{}", out.timings.report());
     assert_eq!(s.selected, 300);

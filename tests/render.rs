@@ -432,7 +432,7 @@ fn look_duck() {
             blobs: 300,
             ..Default::default()
         };
-        let m = nephele::pipeline::fit(&cfg, &mesh).model;
+        let m = nephele::pipeline::fit(&cfg, &mesh).unwrap().model;
         nephele::blobby::save_model(&cache, &m).unwrap();
         m
     });

@@ -1,6 +1,7 @@
-//! Cloud animation schemes (paper §5.2, DESIGN.md §6): aggregation (pieces of cloud gather into
-//! the target), diffusion (the target spreads from one piece) and morph (one blob model turns
-//! into another, e.g. [`cumulus`] into a duck); [`stats`] measures a frame's visible cloud.
+//! Cloud animation schemes (paper §5.2; docs/ARCHITECTURE.md, Animation): aggregation (pieces
+//! of cloud gather into the target), diffusion (the target spreads from one piece) and morph
+//! (one blob model turns into another, e.g. [`cumulus`] into a duck); [`stats`] measures a
+//! frame's visible cloud.
 //!
 //! In: a fitted [`crate::blobby::BlobModel`], the scheme's settings and the shot's [`Timeline`].
 //! Out: a [`Plan`] that gives, per frame, the full blob list (index = blob identity, same length

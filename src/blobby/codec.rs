@@ -1,4 +1,4 @@
-//! Compact binary blob codec (DESIGN.md §5): a lossless f32 form (10 numbers a blob) and a
+//! Compact binary blob codec (docs/ARCHITECTURE.md, Evaluation and codec): a lossless f32 form (10 numbers a blob) and a
 //! quantized form under 20 bytes a blob, each behind a magic number and a version.
 //!
 //! In: a [`BlobModel`]. Out: bytes, and back (errors name the file, the byte offset and the blob).

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use super::{Blob, BlobField};
 
 /// Settings of the faithful optimisation.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct FaithfulConfig {
     /// Gauss–Seidel sweeps over all blobs (paper: 3).
     pub sweeps: usize,

@@ -1,4 +1,4 @@
-//! The ellipsoidal blobby model (paper §4, DESIGN.md §4): blobs, the summed local polynomial
+//! The ellipsoidal blobby model (paper §4; docs/ARCHITECTURE.md): blobs, the summed local polynomial
 //! field, its optimisation, the model file, the compact codec and polygonization.
 //!
 //! A blob has centre `c`, rotation `R`, semi-axes `s` and parameters `A > 0`, `B > 0`. With

@@ -3,8 +3,6 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use nephele::blobby::fit::FaithfulConfig;
-use nephele::blobby::optimise::FullConfig;
 use nephele::decompose::{ObstacleShift, Primitive};
 use nephele::pipeline::{self, FitConfig, Optimisation};
 
@@ -18,13 +16,13 @@ pub struct Args {
     pub output: PathBuf,
     /// Number of blobs to select: an upper bound (the full optimiser drops blobs that end
     /// switched off or negligible, so a model can have fewer).
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = FitConfig::DEFAULT_BLOBS)]
     pub blobs: usize,
     /// Number of candidate ellipsoids (seed vertices of the simplified mesh).
-    #[arg(long, default_value_t = 2500)]
+    #[arg(long, default_value_t = FitConfig::DEFAULT_CANDIDATES)]
     pub candidates: usize,
     /// Number of surface samples.
-    #[arg(long, default_value_t = 60_000)]
+    #[arg(long, default_value_t = FitConfig::DEFAULT_SAMPLES)]
     pub samples: usize,
     /// Blob primitive.
     #[arg(long, value_enum, default_value_t = PrimitiveArg::Ellipsoid)]
@@ -93,10 +91,6 @@ pub enum ShiftArg {
 
 /// Run `nephele fit`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.blobs > 0, "--blobs must be at least 1");
-    anyhow::ensure!(args.candidates > 0, "--candidates must be at least 1");
-    anyhow::ensure!(args.samples >= 100, "--samples must be at least 100");
-    let loaded = super::load_mesh(&args.mesh)?;
     let cfg = FitConfig {
         blobs: args.blobs,
         candidates: args.candidates,
@@ -111,24 +105,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ShiftArg::None => ObstacleShift::None,
         },
         optimisation: match (args.faithful, args.optimiser) {
-            (true, _) | (_, OptimiserArg::Faithful) => {
-                Optimisation::Faithful(FaithfulConfig::default())
-            }
-            (_, OptimiserArg::Full) => {
-                Optimisation::Full(FaithfulConfig::default(), FullConfig::default())
-            }
+            (true, _) | (_, OptimiserArg::Faithful) => Optimisation::Faithful(Default::default()),
+            (_, OptimiserArg::Full) => Optimisation::Full(Default::default(), Default::default()),
             (_, OptimiserArg::None) => Optimisation::None,
         },
         seed: args.seed,
         ..FitConfig::default()
     };
+    cfg.validate()?;
+    let loaded = super::load_mesh(&args.mesh)?;
     let out = match args.max_error {
         Some(pct) => {
             anyhow::ensure!(
                 pct.is_finite() && pct > 0.0,
                 "--max-error must be a positive percentage, got {pct}"
             );
-            let (out, rounds) = pipeline::fit_to_error(&cfg, &loaded, pct, args.max_blobs);
+            let (out, rounds) = pipeline::fit_to_error(&cfg, &loaded, pct, args.max_blobs)?;
             for r in &rounds {
                 eprintln!(
                     "  budget {:>5} blobs ({} kept): Hausdorff {:.3}% of D",
@@ -142,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             out
         }
-        None => pipeline::fit(&cfg, &loaded),
+        None => pipeline::fit(&cfg, &loaded)?,
     };
     nephele::blobby::save_model(&args.output, &out.model)
         .with_context(|| format!("writing the model to {}", args.output.display()))?;

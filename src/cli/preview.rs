@@ -114,7 +114,6 @@ fn load_or_fit(args: &Args) -> anyhow::Result<BlobModel> {
         return Ok(nephele::blobby::load_model(path)?);
     }
     let loaded = super::load_mesh(&args.input)?;
-    anyhow::ensure!(args.blobs >= 1, "--blobs must be at least 1");
     let cfg = FitConfig {
         blobs: args.blobs,
         candidates: 800,
@@ -123,7 +122,7 @@ fn load_or_fit(args: &Args) -> anyhow::Result<BlobModel> {
         ..FitConfig::default()
     };
     let start = Instant::now();
-    let out = pipeline::fit(&cfg, &loaded);
+    let out = pipeline::fit(&cfg, &loaded)?;
     eprintln!(
         "fitted {} blobs to {} in {:.2} s",
         out.model.blobs.len(),

@@ -1,4 +1,4 @@
-//! Three-stage growth of one candidate ellipsoid from a seed (DESIGN.md §3.4; Bischoff &
+//! Three-stage growth of one candidate ellipsoid from a seed (docs/ARCHITECTURE.md, Decomposition; Bischoff &
 //! Kobbelt 2002): inscribed sphere → wedge → perpendicular stage.
 //!
 //! In: the [`ObstacleSet`], a seed point `p` with outward unit normal `n`, and limits.
@@ -77,7 +77,7 @@ fn world_bounds(q: &Quadric, p: DVec3, pad: f64) -> Option<Aabb> {
 /// Grow from seed `p` (outward unit normal `n`) against `obstacles`; `order` is the chunk order
 /// from [`ObstacleSet::chunks_by_distance`] for `p`.
 ///
-/// `n_q` is the sphere's normal at `q` (DESIGN.md), or with `surface_normal_at_q` the sample's
+/// `n_q` is the sphere's normal at `q`, or with `surface_normal_at_q` the sample's
 /// own smooth normal. Either way the family passes through `p` and `q`, stays tangent to `P_p`
 /// (so `a > 0` is outside), `a < 0 < b` has `Q' ≥ Q1 ≥ 0`, and the ellipticity limit is
 /// `2/(1 + n_p·n_q)`: every member is an ellipsoid free of obstacles. (Before the contact

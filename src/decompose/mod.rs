@@ -1,4 +1,5 @@
-//! Ellipsoid decomposition (paper §3, after Bischoff & Kobbelt 2002; DESIGN.md §3):
+//! Ellipsoid decomposition (paper §3, after Bischoff & Kobbelt 2002; docs/ARCHITECTURE.md,
+//! Decomposition):
 //! grow one candidate ellipsoid per seed vertex against shifted surface samples (obstacles),
 //! then pick a covering subset by greedy weighted voxel coverage.
 //!
@@ -8,7 +9,7 @@
 //! `grow` (the three growth stages of one seed), `quadric` and `eigen` (symmetric quadrics →
 //! ellipsoids), `select` (voxel rasterisation and lazy greedy coverage).
 //!
-//! Seed placement (DESIGN.md §3 pitfalls): obstacles are the samples shifted by `σ·ε·D` along
+//! Seed placement: obstacles are the samples shifted by `σ·ε·D` along
 //! their smooth normal (`σ` = +1 outward, −1 inward, 0 none); the seed is the simplified-mesh
 //! vertex moved by `(σ − 1)·ε·D` along its vertex normal, i.e. always `ε·D` *inside* the
 //! obstacle layer. With the outward default the seed stays on the mesh. That gap keeps the
@@ -27,6 +28,7 @@ use crate::geometry::{Aabb, Ellipsoid};
 use crate::mesh::Mesh;
 use crate::mesh::sample::{SurfaceSamples, vertex_mean_curvature};
 use crate::mesh::simplify::simplified_vertex_indices;
+use crate::mesh::winding::WindingNumber;
 
 pub mod eigen;
 pub mod grow;
@@ -76,7 +78,8 @@ pub enum Primitive {
 /// Settings of the decomposition; every length is relative to the mesh's diagonal `D`.
 #[derive(Clone, Debug)]
 pub struct DecomposeConfig {
-    /// Target number of seed vertices (quadric simplification); default 2,500.
+    /// Target number of seed vertices (quadric simplification); default
+    /// [`crate::pipeline::FitConfig::DEFAULT_CANDIDATES`].
     pub candidates: usize,
     /// Obstacle shift direction; default outward.
     pub shift: ObstacleShift,
@@ -102,7 +105,7 @@ pub struct DecomposeConfig {
 impl Default for DecomposeConfig {
     fn default() -> Self {
         DecomposeConfig {
-            candidates: 2500,
+            candidates: crate::pipeline::FitConfig::DEFAULT_CANDIDATES,
             shift: ObstacleShift::Outward,
             epsilon: 0.002,
             primitive: Primitive::Ellipsoid,
@@ -160,10 +163,12 @@ pub fn seed_point(cfg: &DecomposeConfig, v: DVec3, n: DVec3, diagonal: f64) -> D
     v + (cfg.shift.sign() - 1.0) * cfg.epsilon * diagonal * n
 }
 
-/// Grow one candidate per simplified-mesh vertex. Deterministic; parallel over seeds.
+/// Grow one candidate per simplified-mesh vertex; `inside` is the mesh's winding number (the
+/// guard against ellipsoids grown out of the solid). Deterministic; parallel over seeds.
 pub fn grow_candidates(
     cfg: &DecomposeConfig,
     mesh: &Mesh,
+    inside: &WindingNumber,
     samples: &SurfaceSamples,
 ) -> Vec<Candidate> {
     let diagonal = mesh.bounds().diagonal();
@@ -182,12 +187,16 @@ pub fn grow_candidates(
         margin: CONTACT_MARGIN * diagonal,
         min_stage3_axis: STAGE3_MIN_AXIS * (mesh.area() / obstacles.len() as f64).sqrt(),
     };
-    let guard = parry3d_f64::shape::TriMesh::with_flags(
+    let distance = parry3d_f64::shape::TriMesh::with_flags(
         mesh.positions.clone(),
         mesh.triangles.clone(),
-        parry3d_f64::shape::TriMeshFlags::ORIENTED,
+        parry3d_f64::shape::TriMeshFlags::empty(),
     )
     .ok();
+    let guard = distance.as_ref().map(|d| SolidGuard {
+        inside,
+        distance: d,
+    });
     seeds
         .par_iter()
         .map_init(Vec::new, |order, &v| {
@@ -228,13 +237,21 @@ pub fn grow_candidates(
         .collect()
 }
 
+/// The solid a mesh describes, for [`leaves_mesh`]: its winding number says which side a point
+/// is on (right for open scans and soups too), the triangle BVH how far from the surface.
+struct SolidGuard<'a> {
+    inside: &'a WindingNumber,
+    distance: &'a parry3d_f64::shape::TriMesh,
+}
+
 /// True when a point of `e` (its axis ends and the corners of its inscribed box, at 95 %) lies
-/// outside the mesh by more than `tolerance`. Point samples can leave gaps that an elongated
-/// quadric slips through (between a cow's legs, along thin parts); this catches such needles.
-/// Without a usable mesh (`None`: non-manifold), nothing is rejected.
-fn leaves_mesh(mesh: Option<&parry3d_f64::shape::TriMesh>, e: &Ellipsoid, tolerance: f64) -> bool {
+/// outside the solid (winding number ≤ ½) by more than `tolerance`. Point samples can leave
+/// gaps that an elongated quadric slips through (between a cow's legs, along thin parts, out
+/// of a scan's holes); this catches such needles. Without a triangle BVH (`None`: parry
+/// rejected the mesh), nothing is rejected.
+fn leaves_mesh(guard: Option<&SolidGuard>, e: &Ellipsoid, tolerance: f64) -> bool {
     use parry3d_f64::query::PointQuery;
-    let Some(mesh) = mesh else {
+    let Some(guard) = guard else {
         return false;
     };
     let c = 0.95 / 3f64.sqrt();
@@ -256,8 +273,13 @@ fn leaves_mesh(mesh: Option<&parry3d_f64::shape::TriMesh>, e: &Ellipsoid, tolera
     });
     axes.into_iter().chain(corners).any(|local| {
         let x = e.center + e.rotation * (local * e.semi_axes);
-        let proj = mesh.project_local_point(x, true);
-        !proj.is_inside && proj.point.distance(x) > tolerance
+        !guard.inside.inside(x)
+            && guard
+                .distance
+                .project_local_point(x, false)
+                .point
+                .distance(x)
+                > tolerance
     })
 }
 

@@ -1,4 +1,4 @@
-//! Greedy weighted maximum coverage over a voxel grid (DESIGN.md §3.5).
+//! Greedy weighted maximum coverage over a voxel grid (docs/ARCHITECTURE.md, Decomposition).
 //!
 //! In: candidates and the mesh bounds. Out: candidate indices in selection order. Each candidate
 //! covers the voxels whose centres it contains, rasterised row by row inside its bounding box in

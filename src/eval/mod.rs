@@ -1,4 +1,4 @@
-//! Evaluation (DESIGN.md §5, paper §5.1): how far a blob model's surface is from the mesh it was
+//! Evaluation (paper §5.1; docs/ARCHITECTURE.md, Evaluation and codec): how far a blob model's surface is from the mesh it was
 //! fitted to, and how many bytes it takes.
 //!
 //! - [`metro`]: Metro's method (Cignoni, Rocchini & Scopigno 1998) on two triangle meshes —

@@ -9,6 +9,7 @@ pub mod io;
 pub mod marching_cubes;
 pub mod sample;
 pub mod simplify;
+pub mod winding;
 
 use std::path::{Path, PathBuf};
 
@@ -222,13 +223,25 @@ pub fn load(source: &str) -> Result<LoadedMesh, MeshError> {
     let open_edges = mesh.boundary_edge_count();
     if open_edges > 0 {
         warnings.push(format!(
-            "{source}: mesh is open ({open_edges} boundary edges); inside/outside is approximate and results degrade near holes"
+            "{source}: mesh is open ({open_edges} boundary edges); the fit takes the solid its winding number describes (holes closed smoothly); `eval` measures it one-sided, mesh -> model"
         ));
     }
-    if mesh.signed_volume() < 0.0 {
+    // Closed: the signed volume (the integral of the winding number, cheap). Open: the
+    // winding number across the faces (the signed volume then depends on the origin).
+    let inward = if open_edges == 0 {
+        mesh.signed_volume() < 0.0
+    } else {
+        winding::orientation(&mesh, &winding::WindingNumber::new(&mesh), 4096) < 0.0
+    };
+    if inward {
         mesh.flip_orientation();
+        let why = if open_edges == 0 {
+            "negative signed volume"
+        } else {
+            "negative winding number behind the faces"
+        };
         warnings.push(format!(
-            "{source}: faces were wound inward (negative signed volume); flipped them"
+            "{source}: faces were wound inward ({why}); flipped them"
         ));
     }
     Ok(LoadedMesh {

@@ -1,4 +1,4 @@
-//! Area-weighted surface samples with smooth normals and mean curvature (DESIGN.md §3.1).
+//! Area-weighted surface samples with smooth normals and mean curvature (docs/ARCHITECTURE.md, Decomposition).
 //!
 //! In: a [`Mesh`], a sample count and a seed. Out: [`SurfaceSamples`] (positions, unit normals
 //! interpolated from the area-weighted vertex normals, mean curvature interpolated from the

@@ -1,5 +1,5 @@
 //! Quadric-error-metric simplification (Garland–Heckbert, via `meshopt`) to pick decomposition
-//! seeds (DESIGN.md §3.3).
+//! seeds (docs/ARCHITECTURE.md, Decomposition).
 //!
 //! In: a [`Mesh`] and a target vertex count. Out: the sorted indices of the original vertices
 //! that the simplified mesh keeps.

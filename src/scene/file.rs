@@ -88,13 +88,13 @@ pub enum Target {
 }
 
 fn default_blobs() -> usize {
-    300
+    crate::pipeline::FitConfig::DEFAULT_BLOBS
 }
 fn default_candidates() -> usize {
-    2500
+    crate::pipeline::FitConfig::DEFAULT_CANDIDATES
 }
 fn default_samples() -> usize {
-    60_000
+    crate::pipeline::FitConfig::DEFAULT_SAMPLES
 }
 
 /// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
@@ -205,22 +205,43 @@ impl Shot {
     }
 }
 
-/// An output image format.
+/// An output format: an image, or the cloud's density grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Format {
     /// Linear HDR OpenEXR (RGBA + depth).
     Exr,
     /// Tone-mapped 8-bit sRGB PNG over the sky.
     Png,
+    /// OpenVDB: the renderer's extinction as a fog-volume float grid `density`.
+    Vdb,
+    /// Mitsuba's binary `.vol` grid of the same extinction (dense over the cloud's box).
+    Vol,
 }
 
 impl Format {
+    /// Every format, in the order of their names in [`Format::from_name`].
+    pub const ALL: [Format; 4] = [Format::Exr, Format::Png, Format::Vdb, Format::Vol];
+
     /// File extension.
     pub fn extension(self) -> &'static str {
         match self {
             Format::Exr => "exr",
             Format::Png => "png",
+            Format::Vdb => "vdb",
+            Format::Vol => "vol",
         }
+    }
+
+    /// The format whose extension is `name` (any case), e.g. `vdb`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.extension().eq_ignore_ascii_case(name.trim()))
+    }
+
+    /// True for the density grids (sampled from the frame's medium, not its image).
+    pub fn is_grid(self) -> bool {
+        matches!(self, Format::Vdb | Format::Vol)
     }
 }
 
@@ -234,6 +255,9 @@ pub struct OutputSpec {
     pub name: Option<String>,
     /// Formats written per frame.
     pub formats: Vec<Format>,
+    /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
+    /// diagonal / 256).
+    pub voxel: Option<f64>,
 }
 
 impl Default for OutputSpec {
@@ -242,6 +266,7 @@ impl Default for OutputSpec {
             dir: None,
             name: None,
             formats: vec![Format::Exr, Format::Png],
+            voxel: None,
         }
     }
 }
@@ -362,20 +387,28 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
             "list at least one format".to_string(),
         ));
     }
+    if let Some(v) = s.output.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(bad(
+            "output.voxel",
+            format!("must be a positive number of world units, got {v}"),
+        ));
+    }
     if let Target::Fit {
         blobs,
         candidates,
         samples,
         ..
     } = &s.target
-        && (*blobs == 0 || *candidates == 0 || *samples < 100)
     {
-        return Err(bad(
-            "target",
-            format!(
-                "need blobs ≥ 1, candidates ≥ 1 and samples ≥ 100, got {blobs}, {candidates}, {samples}"
-            ),
-        ));
+        let fit = crate::pipeline::FitConfig {
+            blobs: *blobs,
+            candidates: *candidates,
+            samples: *samples,
+            ..Default::default()
+        };
+        fit.validate().map_err(|e| bad("target", e.to_string()))?;
     }
     s.animation.validate().map_err(|e| match e {
         crate::animate::AnimateError::Invalid { field, message } => bad(&field, message),

@@ -8,6 +8,7 @@ use super::FullConfig;
 use super::sparsity::widened;
 use crate::blobby::{Blob, BlobField};
 use crate::mesh::sample::SurfaceSamples;
+use crate::mesh::winding::WindingNumber;
 
 /// What a constraint point wants of the field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,11 +100,14 @@ impl<'a> SampleGrid<'a> {
 }
 
 /// Surface points and offset constraint points. An offset point is kept only when no surface
-/// sample is nearer than 80 % of its offset: a point pushed through a thin part or into a
-/// concavity would otherwise demand the wrong sign.
+/// sample is nearer than 80 % of its offset (a point pushed through a thin part or into a
+/// concavity would otherwise demand the wrong sign) and, given the mesh's winding number
+/// `solid`, when it lies on the side it constrains (next to a scan's hole an inward offset can
+/// be outside the solid).
 pub(super) fn constraint_points(
     cfg: &FullConfig,
     samples: &SurfaceSamples,
+    solid: Option<&WindingNumber>,
     far: &[(DVec3, bool)],
     diag: f64,
 ) -> Points {
@@ -130,7 +134,8 @@ pub(super) fn constraint_points(
                 let n = samples.normals[i];
                 let x = samples.positions[i] + n * (off * diag);
                 let clear = grid.as_ref().is_none_or(|g| !g.any_within(x, r));
-                clear.then_some((x, n))
+                let side = off == 0.0 || solid.is_none_or(|w| w.inside(x) == (off < 0.0));
+                (clear && side).then_some((x, n))
             })
             .collect();
         for (x, n) in candidates {
@@ -150,16 +155,15 @@ pub(super) fn constraint_points(
 
 /// Far-field sign constraints: points of a coarse grid over the mesh's bounds (expanded by
 /// 15 % of `D`, `resolution` cells on the longest side) that lie farther than `1.5 %` of `D` from
-/// the surface, with whether they are inside. They stop blobs from growing a spurious surface
-/// away from the mesh, where no offset sample reaches.
-///
-/// Inside/outside: a point the grid's border reaches by a flood fill is outside. The fill
-/// crosses a grid edge only when the balls of the two ends' surface distances cover it, so it
-/// never passes through the surface. Parry's pseudo-normal test alone misclassifies whole
-/// regions of some scanned meshes (under the horse's belly, a quarter of `D` from any face); it
-/// only decides the points the fill cannot reach (cavities, narrow gaps). An unusable mesh
-/// gives no points.
-pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVec3, bool)> {
+/// the surface, each with whether it is inside the solid (winding number `solid` above ½). They
+/// stop blobs from growing a spurious surface away from the mesh, where no offset sample
+/// reaches, and across a scan's holes they say where the solid continues. A mesh parry cannot
+/// index gives no points.
+pub fn far_field_points(
+    mesh: &crate::mesh::Mesh,
+    solid: &WindingNumber,
+    resolution: usize,
+) -> Vec<(DVec3, bool)> {
     use parry3d_f64::query::PointQuery;
     use parry3d_f64::shape::{TriMesh, TriMeshFlags};
     let bounds = mesh.bounds();
@@ -168,7 +172,7 @@ pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVe
     let Ok(tri) = TriMesh::with_flags(
         mesh.positions.clone(),
         mesh.triangles.clone(),
-        TriMeshFlags::ORIENTED,
+        TriMeshFlags::empty(),
     ) else {
         return Vec::new();
     };
@@ -183,56 +187,14 @@ pub fn far_field_points(mesh: &crate::mesh::Mesh, resolution: usize) -> Vec<(DVe
         let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
         bounds.min + DVec3::new(i as f64, j as f64, l as f64) * cell
     };
-    let probes: Vec<(f64, bool)> = (0..n[0] * n[1] * n[2])
+    (0..n[0] * n[1] * n[2])
         .into_par_iter()
-        .map(|k| {
+        .filter_map(|k| {
             let x = at(k);
-            let proj = tri.project_local_point(x, false);
-            (proj.point.distance(x), proj.is_inside)
+            let far = tri.project_local_point(x, false).point.distance(x) > 0.015 * diag;
+            far.then(|| (x, solid.inside(x)))
         })
-        .collect();
-    let outside = flood_from_border(n, &probes, cell);
-    probes
-        .iter()
-        .enumerate()
-        .filter(|(_, (d, _))| *d > 0.015 * diag)
-        .map(|(k, &(_, inside))| (at(k), inside && !outside[k]))
         .collect()
-}
-
-/// Grid points reachable from the border along edges whose two ends' distance balls cover them.
-fn flood_from_border(n: [usize; 3], probes: &[(f64, bool)], cell: f64) -> Vec<bool> {
-    let index = |i: usize, j: usize, l: usize| i + n[0] * (j + n[1] * l);
-    let mut reached = vec![false; probes.len()];
-    let mut stack: Vec<usize> = Vec::new();
-    for (k, seen) in reached.iter_mut().enumerate() {
-        let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
-        let border = i == 0 || j == 0 || l == 0 || i + 1 == n[0] || j + 1 == n[1] || l + 1 == n[2];
-        if border {
-            *seen = true;
-            stack.push(k);
-        }
-    }
-    while let Some(k) = stack.pop() {
-        let (i, j, l) = (k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1]));
-        let neighbours = [
-            (i > 0).then(|| index(i - 1, j, l)),
-            (i + 1 < n[0]).then(|| index(i + 1, j, l)),
-            (j > 0).then(|| index(i, j - 1, l)),
-            (j + 1 < n[1]).then(|| index(i, j + 1, l)),
-            (l > 0).then(|| index(i, j, l - 1)),
-            (l + 1 < n[2]).then(|| index(i, j, l + 1)),
-        ];
-        for m in neighbours.into_iter().flatten() {
-            // 1 % slack: a flat face square to the edge makes the two distances add up to the
-            // cell exactly, and rounding must not carry the fill through it.
-            if !reached[m] && probes[k].0 + probes[m].0 > 1.01 * cell {
-                reached[m] = true;
-                stack.push(m);
-            }
-        }
-    }
-    reached
 }
 
 #[cfg(test)]
@@ -243,7 +205,8 @@ mod tests {
 
     #[test]
     fn far_field_inside_matches_the_pseudo_normal_test_on_clean_meshes() {
-        // The duck's flat base is square to the grid: the fill must not leak through it.
+        // On clean closed meshes parry's pseudo-normal test is right: the winding number must
+        // agree with it everywhere (the duck's flat base is square to the grid).
         for name in ["builtin:duck", "builtin:torus-knot"] {
             let mesh = crate::mesh::load(name).unwrap().mesh;
             let tri = TriMesh::with_flags(
@@ -252,7 +215,7 @@ mod tests {
                 TriMeshFlags::ORIENTED,
             )
             .unwrap();
-            let far = far_field_points(&mesh, 40);
+            let far = far_field_points(&mesh, &WindingNumber::new(&mesh), 40);
             let inside = far.iter().filter(|f| f.1).count();
             assert!(inside > 100, "{name}: {inside} inside of {}", far.len());
             for &(x, flag) in &far {
