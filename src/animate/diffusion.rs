@@ -44,8 +44,9 @@
 //!   is hidden (`B = 0`). The visible count never decreases.
 //!
 //! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
-//! every frame, at most 31 % of the final volume added per second; the blend's start loses up
-//! to 1.3 % (duck) and 5.4 % (horse) of the final volume over a few frames.
+//! every frame, at most a third of the final volume added per second; the volume dips while
+//! the early cloud blends into the fitted one (up to 12 % of the final for the duck, 24 % for
+//! the horse, whose early cloud overshoots the final volume).
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
