@@ -43,10 +43,14 @@
 //!   rises from zero with the blend, so it adds to the field gently. Before it starts, a blob
 //!   is hidden (`B = 0`). The visible count never decreases.
 //!
+//! Where the early cloud would hold more than 90 % of the final volume (it is fuller than the
+//! target in places and would have to shrink into it), its blobs are weakened to
+//! `B = γ·(1+A)/A`, `γ` stepping down by 0.05 to at least 0.8.
+//!
 //! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
 //! every frame, at most a third of the final volume added per second; the volume dips while
-//! the early cloud blends into the fitted one (up to 12 % of the final for the duck, 24 % for
-//! the horse, whose early cloud overshoots the final volume).
+//! the early cloud blends into the fitted one (up to 12 % of the final for the duck, 13 % for
+//! the horse).
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -58,6 +62,10 @@ use crate::blobby::{Blob, BlobField};
 
 /// Size of blob I on the first frame, relative to its full size ("one small piece").
 const SEED_SIZE: f64 = 0.35;
+
+/// Most of the final volume the early cloud (I and II as shown) may hold before its strength is
+/// lowered.
+const EARLY_SHARE_MAX: f64 = 0.9;
 
 /// Samples of the blend's volume taken at plan time (for its pace).
 const BLEND_SAMPLES: usize = 8;
@@ -166,6 +174,9 @@ pub struct DiffusionPlan {
     pace_knots: Vec<(f64, f64)>,
     /// Category III arrives together (its growth follows the blend progress).
     together: bool,
+    /// Volume of categories I and II as shown, over the final volume (2 % lattice; NaN when
+    /// not measured).
+    early_share: f64,
     timeline: Timeline,
 }
 
@@ -182,6 +193,13 @@ impl DiffusionPlan {
             EarlyShape::Fitted => 0.0,
         };
         let mut plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, strength);
+        // Where the early cloud would be fuller than the target, it would have to shrink into
+        // it: weaken it (γ down to 0.8) until it holds at most 90 % of the final volume.
+        let mut gamma = strength;
+        while strength > 0.0 && plan.early_share > EARLY_SHARE_MAX && gamma > 0.8 + 1e-9 {
+            gamma -= 0.05;
+            plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, gamma);
+        }
         if plan.together {
             plan.pace_knots = pace_knots(&plan.blend_volumes(threshold));
         }
@@ -234,6 +252,7 @@ impl DiffusionPlan {
         let g2 = cfg.grow_seconds.min(motion / 3.0);
         let (finish, early_voxels) =
             volume_paced_finish(&early, threshold, &order[..(1 + n_ii).min(order.len())]);
+        let mut early_share = f64::NAN;
         let g3 = match cfg.category_iii {
             DetailArrival::Together => {
                 // The motion is split in proportion to the volume each part adds (the early
@@ -241,7 +260,8 @@ impl DiffusionPlan {
                 // grow at about the same rate; at least `final_grow_seconds`.
                 let lattice = Lattice::for_target(&blob_bounds(&early), 0.02);
                 let final_voxels = visible_volume(target, threshold, lattice).voxels.max(1);
-                let share = (early_voxels as f64 / final_voxels as f64).clamp(0.2, 0.8);
+                early_share = early_voxels as f64 / final_voxels as f64;
+                let share = early_share.clamp(0.2, 0.8);
                 cfg.final_grow_seconds
                     .max(motion * (1.0 - share))
                     .min(motion)
@@ -293,6 +313,7 @@ impl DiffusionPlan {
             blend_start,
             blend_seconds: g3,
             pace_knots: Vec::new(),
+            early_share,
             together: cfg.category_iii == DetailArrival::Together,
             timeline,
         }
