@@ -1,8 +1,8 @@
 //! Nephele against Mitsuba 3 (a physically based volumetric path tracer) on the same density
 //! grid, camera, sun and sky: single scattering (`volpath`, `max_depth` 2) and full transport.
 //!
-//! The grid is sampled through the frame's [`Medium`] (`begin_tile` / `begin_ray` /
-//! `extinction`), the same path the volume export uses, at voxel centres. Nephele renders the
+//! The grid is the volume export's (`nephele::export::grid::sample_medium` through the frame's
+//! `Medium`, written by `export::vol::write_vol` as Mitsuba's `.vol`). Nephele renders the
 //! frame itself (from the blobs, as in production); `tools/mitsuba_compare.py` renders the
 //! grid in Mitsuba and prints the comparison.
 //!
@@ -17,10 +17,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use glam::Vec3A;
-use nephele::render::camera::{CameraRays, Frustum, Ray};
+use nephele::render::camera::CameraRays;
 use nephele::render::shading::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
-use nephele::render::{BlobMedium, Medium, RenderSettings, SkyDome, render_medium};
+use nephele::render::{BlobMedium, RenderSettings, SkyDome, render_medium};
 use nephele::scene::{RenderOptions, load_scene, load_target, shot};
 
 /// The Python interpreter with mitsuba, if any.
@@ -42,48 +41,6 @@ fn write_f32(path: &Path, v: impl IntoIterator<Item = f32>) {
     for x in v {
         f.write_all(&x.to_le_bytes()).unwrap();
     }
-}
-
-/// Extinction at the voxel centres of an `n`-cell (longest side) grid over the medium's
-/// bounds, z-major `(z, y, x)`, through the `Medium` contract (rows along +x are rays).
-fn sample_grid(m: &BlobMedium, n: u32) -> (Vec<f32>, [usize; 3], Vec3A, Vec3A) {
-    let (lo, hi) = m.bounds().expect("a live cloud");
-    let size = hi - lo;
-    let h = size.max_element() / n as f32;
-    let dims = [
-        (size.x / h).ceil() as usize,
-        (size.y / h).ceil() as usize,
-        (size.z / h).ceil() as usize,
-    ];
-    let hi = lo + Vec3A::new(dims[0] as f32, dims[1] as f32, dims[2] as f32) * h;
-    let all = Frustum {
-        apex: lo,
-        forward: Vec3A::ZERO,
-        planes: [Vec3A::ZERO; 4],
-    };
-    let mut grid = vec![0.0f32; dims[0] * dims[1] * dims[2]];
-    use rayon::prelude::*;
-    grid.par_chunks_mut(dims[0] * dims[1])
-        .enumerate()
-        .for_each(|(k, slice)| {
-            let mut s = m.scratch();
-            m.begin_tile(&all, &mut s);
-            for j in 0..dims[1] {
-                let ray = Ray {
-                    origin: lo + Vec3A::new(0.0, (j as f32 + 0.5) * h, (k as f32 + 0.5) * h),
-                    dir: Vec3A::X,
-                };
-                m.begin_ray(&ray, &mut s);
-                let ivs = m.intervals(&s).to_vec();
-                for i in 0..dims[0] {
-                    let t = (i as f32 + 0.5) * h;
-                    if ivs.iter().any(|iv| iv[0] <= t && t <= iv[1]) {
-                        slice[j * dims[0] + i] = m.extinction(&s, t, ray.at(t));
-                    }
-                }
-            }
-        });
-    (grid, dims, lo, hi)
 }
 
 /// Nephele's frame composited over the sky, linear RGB, row-major, and its alpha.
@@ -173,9 +130,12 @@ fn write_inputs(
         };
         write_f32(&dir.join(name), composite(&s, &f));
     }
+    // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
     let m = BlobMedium::new(&s, &blobs);
-    let (grid, dims, lo, hi) = sample_grid(&m, grid_res);
-    write_f32(&dir.join("grid.f32"), grid);
+    let (lo, hi) = m.bounds().expect("a live cloud");
+    let voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
+    let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
+    nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
     let (sw, sh) = (512, 256);
     write_f32(&dir.join("sky.f32"), sky_map(&s, sw, sh));
     let sun_dir = s.sun.travel_dir();
@@ -185,7 +145,7 @@ fn write_inputs(
     let meta = format!(
         r#"{{"width": {}, "height": {}, "position": {}, "look_at": {}, "up": {}, "fov_deg": {},
 "sun_dir": {}, "sun_irradiance": {}, "albedo": {}, "g": {}, "back_weight": {}, "back_ratio": {},
-"grid_dims": [{}, {}, {}], "grid_lo": {}, "grid_hi": {}, "sky_size": [{sw}, {sh}],
+"sky_size": [{sw}, {sh}],
 "exposure": {}, "nephele_seconds_ss": {}, "nephele_seconds_ms": {}}}"#,
         s.width,
         s.height,
@@ -199,11 +159,6 @@ fn write_inputs(
         s.cloud.phase_g,
         BACK_LOBE_WEIGHT,
         BACK_LOBE_RATIO,
-        dims[0],
-        dims[1],
-        dims[2],
-        v(lo.into()),
-        v(hi.into()),
         s.exposure,
         times[0],
         times[1],

@@ -2,8 +2,8 @@
 """Render nephele's density grid in Mitsuba 3 and compare with nephele's own frames.
 
 Input: a folder written by `tests/mitsuba.rs` (see its module doc):
-  meta.json       camera, sun, phase function, grid placement, nephele's times
-  grid.f32        extinction per world unit at voxel centres, (z, y, x) little-endian f32
+  meta.json       camera, sun, phase function, nephele's times
+  grid.vol        the volume export's Mitsuba grid: extinction per world unit, with its box
   sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb)
   nephele_ss.f32  nephele's frame, single scattering only, over the sky: (y, x, rgba)
   nephele_ms.f32  the same with nephele's multiple-scattering approximation
@@ -52,9 +52,20 @@ def load(d, name, shape):
     return np.fromfile(os.path.join(d, name), dtype="<f4").reshape(shape)
 
 
-def scene_dict(meta, grid, sky, max_depth, spp, seed):
+def read_vol(path):
+    """A Mitsuba `.vol` grid: (values (z, y, x, 1), box min, box max)."""
+    raw = open(path, "rb").read()
+    assert raw[:3] == b"VOL" and raw[3] == 3, f"{path}: not a version-3 .vol file"
+    enc, nx, ny, nz, ch = np.frombuffer(raw, "<i4", 5, 4)
+    assert enc == 1 and ch == 1, f"{path}: expected one float32 channel"
+    box = np.frombuffer(raw, "<f4", 6, 24).astype(float)
+    vals = np.frombuffer(raw, "<f4", nx * ny * nz, 48).reshape(nz, ny, nx, 1)
+    return np.ascontiguousarray(vals), box[:3], box[3:]
+
+
+def scene_dict(meta, vol, sky, max_depth, spp, seed):
     T = mi.ScalarTransform4f
-    lo, hi = np.array(meta["grid_lo"]), np.array(meta["grid_hi"])
+    grid, lo, hi = vol
     g = meta["g"]
     return {
         "type": "scene",
@@ -152,8 +163,7 @@ def main():
     variant = pick_variant()
     meta = json.load(open(os.path.join(args.dir, "meta.json")))
     w, h = meta["width"], meta["height"]
-    nx, ny, nz = meta["grid_dims"]
-    grid = load(args.dir, "grid.f32", (nz, ny, nx, 1))
+    grid = read_vol(os.path.join(args.dir, "grid.vol"))
     sw, sh = meta["sky_size"]
     sky = load(args.dir, "sky.f32", (sh, sw, 3))
     n_ss = load(args.dir, "nephele_ss.f32", (h, w, 4))

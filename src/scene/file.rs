@@ -12,6 +12,8 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
+use super::camera::CameraKeyframes;
+use super::transform::TargetTransform;
 use crate::animate::Animation;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 
@@ -21,6 +23,9 @@ use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 pub struct SceneFile {
     /// What the cloud becomes (the only required field).
     pub target: Target,
+    /// Orientation, size and place of the target in the shot (default: as fitted).
+    #[serde(default)]
+    pub transform: TargetTransform,
     /// The animation scheme.
     #[serde(default)]
     pub animation: Animation,
@@ -95,14 +100,16 @@ fn default_samples() -> usize {
     crate::pipeline::FitConfig::DEFAULT_SAMPLES
 }
 
-/// The camera: automatic framing of the target, or fixed; optionally orbiting.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum CameraSpec {
     /// Frame the target's bounding sphere from a direction.
     Auto(AutoCamera),
     /// An explicit pinhole camera (world units).
     Fixed(FixedCamera),
+    /// Keyframes in seconds, smoothly interpolated (see [`super::camera`]).
+    Keyframes(CameraKeyframes),
 }
 
 impl Default for CameraSpec {
@@ -201,22 +208,43 @@ impl Shot {
     }
 }
 
-/// An output image format.
+/// An output format: an image, or the cloud's density grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Format {
     /// Linear HDR OpenEXR (RGBA + depth).
     Exr,
     /// Tone-mapped 8-bit sRGB PNG over the sky.
     Png,
+    /// OpenVDB: the renderer's extinction as a fog-volume float grid `density`.
+    Vdb,
+    /// Mitsuba's binary `.vol` grid of the same extinction (dense over the cloud's box).
+    Vol,
 }
 
 impl Format {
+    /// Every format, in the order of their names in [`Format::from_name`].
+    pub const ALL: [Format; 4] = [Format::Exr, Format::Png, Format::Vdb, Format::Vol];
+
     /// File extension.
     pub fn extension(self) -> &'static str {
         match self {
             Format::Exr => "exr",
             Format::Png => "png",
+            Format::Vdb => "vdb",
+            Format::Vol => "vol",
         }
+    }
+
+    /// The format whose extension is `name` (any case), e.g. `vdb`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.extension().eq_ignore_ascii_case(name.trim()))
+    }
+
+    /// True for the density grids (sampled from the frame's medium, not its image).
+    pub fn is_grid(self) -> bool {
+        matches!(self, Format::Vdb | Format::Vol)
     }
 }
 
@@ -230,6 +258,9 @@ pub struct OutputSpec {
     pub name: Option<String>,
     /// Formats written per frame.
     pub formats: Vec<Format>,
+    /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
+    /// diagonal / 256).
+    pub voxel: Option<f64>,
 }
 
 impl Default for OutputSpec {
@@ -238,6 +269,7 @@ impl Default for OutputSpec {
             dir: None,
             name: None,
             formats: vec![Format::Exr, Format::Png],
+            voxel: None,
         }
     }
 }
@@ -328,6 +360,8 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
                 ));
             }
         }
+        // Checked while parsing, with the file position.
+        CameraSpec::Keyframes(_) => {}
     }
     validate_light(&bad, &s.sun, &s.sky)?;
     validate_cloud(&bad, &s.cloud)?;
@@ -337,6 +371,14 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         return Err(bad(
             "output.formats",
             "list at least one format".to_string(),
+        ));
+    }
+    if let Some(v) = s.output.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(bad(
+            "output.voxel",
+            format!("must be a positive number of world units, got {v}"),
         ));
     }
     if let Target::Fit {

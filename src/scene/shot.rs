@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::camera::camera_at;
-use super::target::{TargetOrigin, load_target};
+use super::stats::StatsBasis;
+use super::target::{TargetOrigin, load_spec, load_target};
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
@@ -31,6 +32,9 @@ pub struct RenderOptions {
     pub force: bool,
     /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
     pub dump_blobs: bool,
+    /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
+    /// already done are rendered again in memory for their coverage.
+    pub stats: bool,
 }
 
 /// What happened to one frame.
@@ -59,6 +63,8 @@ pub struct ShotReport {
     pub target: Option<TargetOrigin>,
     /// Wall time per stage (target, plan, render, write).
     pub timings: Timings,
+    /// The statistics file, when asked for.
+    pub stats: Option<PathBuf>,
 }
 
 /// The resolved geometry of a shot: folder, frames, image size.
@@ -140,20 +146,31 @@ pub struct Prepared {
     pub bounds: Aabb,
 }
 
-/// Plan the scene's animation for `model`.
-pub fn prepare(scene: &Scene, model: BlobModel) -> Result<Prepared, SceneError> {
+/// Apply the scene's target transform to `model` and plan its animation.
+pub fn prepare(scene: &Scene, mut model: BlobModel) -> Result<Prepared, SceneError> {
+    scene.file.transform.apply(&mut model.blobs);
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,
         fps: shot.fps,
         hold_seconds: scene.file.animation.hold_seconds(),
     };
-    let plan = animate::plan(&scene.file.animation, &model, timeline, scene.file.seed).map_err(
-        |source| SceneError::Animate {
-            scene: scene.path.clone(),
-            source,
-        },
-    )?;
+    // A morph's source: fitted sources are cached in the scene's output folder.
+    let source = match &scene.file.animation {
+        animate::Animation::Morph(m) => Some(load_spec(scene, &m.from, &scene.output_dir)?.0),
+        _ => None,
+    };
+    let plan = animate::plan_with_source(
+        &scene.file.animation,
+        &model,
+        source.as_ref(),
+        timeline,
+        scene.file.seed,
+    )
+    .map_err(|source| SceneError::Animate {
+        scene: scene.path.clone(),
+        source,
+    })?;
     let bounds = blob_bounds(&model.blobs);
     Ok(Prepared {
         model,
@@ -180,7 +197,7 @@ pub fn frame_settings(
     RenderSettings {
         width: setup.width,
         height: setup.height,
-        camera: camera_at(&f.camera, &prep.bounds, aspect, u),
+        camera: camera_at(&f.camera, &prep.bounds, aspect, u, k as f64 / f.shot.fps),
         sun: f.sun,
         sky: f.sky,
         cloud: f.cloud,
@@ -211,19 +228,27 @@ pub fn render_shot(
                 .iter()
                 .all(|p| p.is_file())
     };
-    let todo: Vec<u32> = setup.frames.clone().filter(|&f| !done(f)).collect();
+    let todo: Vec<u32> = setup
+        .frames
+        .clone()
+        .filter(|&f| opts.stats || !done(f))
+        .collect();
     let mut report = ShotReport {
         output_dir: setup.dir.clone(),
         rendered: 0,
         skipped: 0,
         target: None,
         timings: Timings::default(),
+        stats: None,
     };
     if !todo.is_empty() {
         let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
         report.target = Some(origin);
         let prep = timings.stage("plan", || prepare(scene, model))?;
-        let (mut render_s, mut write_s) = (0.0, 0.0);
+        let voxel = grid_voxel(scene, &prep)?;
+        let basis = opts.stats.then(|| StatsBasis::new(&prep));
+        let mut stats = Vec::new();
+        let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
         for frame in setup.frames.clone() {
             if !todo.contains(&frame) {
                 report.skipped += 1;
@@ -236,19 +261,43 @@ pub fn render_shot(
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
             let image = render::render_frame(&settings, &blobs);
             let rendered = Instant::now();
-            write_frame(scene, &setup.dir, frame, &image, &settings, opts, &blobs)?;
+            let write = !done(frame);
+            if write {
+                let out = FrameOutput {
+                    image: &image,
+                    settings: &settings,
+                    blobs: &blobs,
+                    voxel,
+                };
+                write_frame(scene, &setup.dir, frame, &out, opts)?;
+            }
+            let written = Instant::now();
+            if let Some(basis) = &basis {
+                stats.push(basis.frame(frame, &blobs, Some(&image)));
+            }
             render_s += (rendered - start).as_secs_f64();
-            write_s += rendered.elapsed().as_secs_f64();
-            report.rendered += 1;
+            write_s += (written - rendered).as_secs_f64();
+            stats_s += written.elapsed().as_secs_f64();
+            if write {
+                report.rendered += 1;
+            } else {
+                report.skipped += 1;
+            }
             on_frame(&FrameReport {
                 frame,
                 of: setup.total,
-                skipped: false,
+                skipped: !write,
                 seconds: start.elapsed().as_secs_f64(),
             });
         }
         timings.stages.push(("render".into(), render_s));
         timings.stages.push(("write".into(), write_s));
+        if basis.is_some() {
+            timings.stages.push(("stats".into(), stats_s));
+            let path = super::stats::stats_path(scene, &setup.dir);
+            super::stats::write_csv(&path, &stats)?;
+            report.stats = Some(path);
+        }
     } else {
         for frame in setup.frames.clone() {
             report.skipped += 1;
@@ -268,26 +317,83 @@ fn skipped(frame: u32, of: u32) -> FrameReport {
     }
 }
 
-/// Write one frame's files atomically; the blob dump (if any) is written last.
+/// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
+/// 256), checked against the target's box before any frame is rendered; 0 when the scene
+/// writes no grid.
+pub fn grid_voxel(scene: &Scene, prep: &Prepared) -> Result<f64, SceneError> {
+    if !scene.file.output.formats.iter().any(|f| f.is_grid()) {
+        return Ok(0.0);
+    }
+    let voxel = crate::export::voxel_size(scene.file.output.voxel, &prep.bounds);
+    crate::export::check_voxel_budget(voxel, &prep.bounds).map_err(|message| {
+        SceneError::Invalid {
+            path: scene.path.clone(),
+            field: "output.voxel".into(),
+            message,
+        }
+    })?;
+    Ok(voxel)
+}
+
+/// What one frame's files are made from.
+struct FrameOutput<'a> {
+    image: &'a render::Frame,
+    settings: &'a RenderSettings,
+    blobs: &'a [Blob],
+    /// Voxel size of the density grids.
+    voxel: f64,
+}
+
+/// Write one frame's files atomically; the blob dump (if any) is written last. The density
+/// grid is sampled once, if a grid format is asked for.
 fn write_frame(
     scene: &Scene,
     dir: &Path,
     frame: u32,
-    image: &render::Frame,
-    settings: &RenderSettings,
+    out: &FrameOutput,
     opts: &RenderOptions,
-    blobs: &[Blob],
 ) -> Result<(), SceneError> {
+    let FrameOutput {
+        image,
+        settings,
+        blobs,
+        voxel,
+    } = *out;
     let paths = frame_paths(scene, dir, frame, opts.dump_blobs);
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| SceneError::Io { path, source }
     };
+    let mut grid = None;
     for (format, path) in scene.file.output.formats.iter().zip(&paths) {
+        if format.is_grid() && grid.is_none() {
+            let g = crate::export::frame_grid(settings, blobs, voxel).map_err(|e| {
+                SceneError::Invalid {
+                    path: scene.path.clone(),
+                    field: "output.voxel".into(),
+                    message: format!("frame {frame}: {e}"),
+                }
+            })?;
+            grid = Some(g);
+        }
         match format {
-            super::Format::Exr => render::output::write_exr(path, image).map_err(io(path))?,
+            super::Format::Exr => {
+                let meta = frame_metadata(scene, settings, frame);
+                render::output::write_exr_with(path, image, &meta).map_err(io(path))?
+            }
             super::Format::Png => {
                 render::output::write_png(path, image, settings).map_err(io(path))?
+            }
+            super::Format::Vdb => {
+                let g = grid.as_ref().expect("sampled above");
+                let uuid_seed =
+                    crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
+                crate::export::write_vdb(path, g, crate::export::GRID_NAME, uuid_seed)
+                    .map_err(io(path))?
+            }
+            super::Format::Vol => {
+                let g = grid.as_ref().expect("sampled above");
+                crate::export::write_vol(path, g).map_err(io(path))?
             }
         }
     }
@@ -297,6 +403,28 @@ fn write_frame(
         crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
     }
     Ok(())
+}
+
+/// The EXR attributes of frame `frame` (1-based): the camera's matrices and the strings
+/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/seed` (the scene's) and
+/// `nephele/version` (the crate's). Nothing depends on the run, so frames stay byte-identical.
+pub fn frame_metadata(
+    scene: &Scene,
+    settings: &RenderSettings,
+    frame: u32,
+) -> render::output::FrameMetadata {
+    let file = scene
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let strings = vec![
+        ("scene".to_string(), file),
+        ("frame".to_string(), frame.to_string()),
+        ("seed".to_string(), scene.file.seed.to_string()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+    ];
+    render::output::FrameMetadata::new(&settings.camera, settings.width, settings.height, strings)
 }
 
 /// A frame's blob list as RON (a list of `Blob`s, index = identity).
