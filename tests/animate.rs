@@ -443,8 +443,10 @@ fn horse_diffusion_meets_the_bars_standing_upright() {
         return;
     };
     // The coverage bar is on the renderer's alpha (measured 0.34 of the final coverage in the
-    // worst second): a new cloud look may move it.
-    assert_one_piece_and_smooth("horse-diffusion", &scene, &stats, 0.35);
+    // worst second): a new cloud look may move it. Issue 13's look puts density only inside
+    // the iso-surface (no sub-threshold puffs), so the last small blobs appear only once their
+    // field reaches it: 0.406 (frames 109–133). Bar 0.41 — for the lead to weigh (coord.md).
+    assert_one_piece_and_smooth("horse-diffusion", &scene, &stats, 0.41);
     assert_grows("horse-diffusion", &scene, &stats, 0.06);
     // Upright, seen from the side (camera from +X): longer along Z than tall, taller than wide.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));

@@ -10,7 +10,8 @@
 //! `NEPHELE_PYTHON` to pick the interpreter), otherwise it prints that it skipped.
 //! Full comparison (documented in the README):
 //! `NEPHELE_MITSUBA_FULL=1 cargo test --release --test mitsuba -- --ignored --nocapture`
-//! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n`.
+//! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
+//! duck's last frame).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -82,11 +83,12 @@ fn sky_map(s: &RenderSettings, w: usize, h: usize) -> Vec<f32> {
     out
 }
 
-/// Write the comparison inputs for frame `frame` (1-based) of `scene` into `dir`; returns
+/// Write the comparison inputs for frame `frame` (1-based; `None` = the shot's last frame) of
+/// `scene` into `dir`; returns
 /// nephele's seconds per frame (single scattering, multiple-scattering approximation).
 fn write_inputs(
     scene: &Path,
-    frame: u32,
+    frame: Option<u32>,
     size: (u32, u32),
     grid_res: u32,
     dir: &Path,
@@ -98,7 +100,7 @@ fn write_inputs(
     let (model, _) =
         load_target(&scene, &std::env::temp_dir().join("nephele-mitsuba-cache")).unwrap();
     let prep = shot::prepare(&scene, model).unwrap();
-    let k = frame - 1;
+    let k = frame.unwrap_or(setup.total) - 1;
     let blobs = prep.plan.frame(k as usize);
     let mut s = shot::frame_settings(&scene, &prep, &setup, k, false);
     if let Ok(q) = std::env::var("NEPHELE_MITSUBA_QUALITY") {
@@ -215,7 +217,7 @@ fn single_scattering_matches_mitsuba() {
     let dir = std::env::temp_dir().join(format!("nephele-mitsuba-{}", std::process::id()));
     write_inputs(
         &repo().join("scenes/duck-diffusion.ron"),
-        96,
+        None,
         (160, 90),
         96,
         &dir,
@@ -263,8 +265,7 @@ fn mitsuba_full_comparison() {
         .unwrap_or_else(|_| "scenes/duck-diffusion.ron".into());
     let frame = std::env::var("NEPHELE_MITSUBA_FRAME")
         .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(96);
+        .and_then(|v| v.parse().ok());
     let spp = std::env::var("NEPHELE_MITSUBA_SPP")
         .ok()
         .and_then(|v| v.parse().ok())

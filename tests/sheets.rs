@@ -44,6 +44,7 @@ fn sheets() {
         "torus-knot-aggregation",
         "bunny-aggregation",
         "horse-diffusion",
+        "cumulus-to-duck",
     ] {
         let pick = |n: u32| vec![(n / 5).max(1), (n * 11 / 20).max(1), n];
         let Some(images) = frames(&repo.join(format!("scenes/{name}.ron")), &pick) else {

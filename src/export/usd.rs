@@ -226,7 +226,10 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
             ground_albedo,
         } => {
             let _ = writeln!(s, "            float nephele_turbidity = {turbidity}");
-            let _ = writeln!(s, "            float nephele_ground_albedo = {ground_albedo}");
+            let _ = writeln!(
+                s,
+                "            float nephele_ground_albedo = {ground_albedo}"
+            );
         }
     }
     let _ = writeln!(s, "        }}\n    )\n    {{");

@@ -61,6 +61,8 @@ pub struct BlobMedium {
     b2: Vec<f32>,
     /// World slope of the normalised field on the blob's iso-surface (see [`super::density`]).
     slope: Vec<f32>,
+    /// Erosion depth capped at 0.35 of the smallest semi-axis.
+    depth: Vec<f32>,
     /// Bounding-ball radius of the support.
     radius: Vec<f32>,
     lo: Vec<Vec3A>,
@@ -91,6 +93,7 @@ impl BlobMedium {
             noise_offset: Vec::new(),
             b2: Vec::new(),
             slope: Vec::new(),
+            depth: Vec::new(),
             radius: Vec::new(),
             lo: Vec::new(),
             hi: Vec::new(),
@@ -145,6 +148,11 @@ impl BlobMedium {
             m.b2.push((blob.b * blob.b) as f32);
             let mean_radius = (support.x * support.y * support.z).cbrt();
             m.slope.push(iso_slope(blob.b, mean_radius as f64));
+            m.depth.push(
+                m.params
+                    .depth
+                    .min(0.35 * blob.semi_axes.min_element() as f32),
+            );
             m.radius.push(support.max_element());
             m.lo.push(center - half);
             m.hi.push(center + half);
@@ -214,6 +222,7 @@ impl BlobMedium {
                     t1,
                     b2: self.b2[i],
                     slope: self.slope[i],
+                    depth: self.depth[i],
                     o,
                     d,
                     no: n * rel + self.noise_offset[i],

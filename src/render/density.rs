@@ -14,6 +14,9 @@
 //! e(x)   = Σ_i w_i erosion(N_i x + o_i) / Σ_i w_i      ∈ [0, 1]
 //! ```
 //!
+//! `E` is capped per blob at 0.35 of its smallest semi-axis (blended like `S`), so erosion cannot
+//! cut a thin blob (a leg, a neck) in two.
+//!
 //! `s_i` is blob `i`'s world-space slope of `g` on its own iso-surface (`4B·r_iso / R_i`, `R_i`
 //! the support's mean radius), so `d` is a distance in world units for steep fitted blobs and
 //! soft canonical ones alike. `erosion` ([`super::noise::erosion`]) is 0 on the tops of the
@@ -43,6 +46,8 @@ pub(super) struct Hit {
     pub(super) b2: f32,
     /// World slope `s_i` of the normalised field on the blob's iso-surface.
     pub(super) slope: f32,
+    /// Erosion depth `E_i`: `E`, capped at a 0.35 of the blob's smallest semi-axis.
+    pub(super) depth: f32,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
     pub(super) o: Vec3A,
     pub(super) d: Vec3A,
@@ -71,15 +76,15 @@ impl DensityParams {
     /// `σ_t` at depth `d` below the iso-surface; `erosion()` (in `[0, 1]`) is called only when
     /// it can change the result.
     #[inline]
-    fn extinction(&self, d: f32, erosion: impl FnOnce() -> f32) -> f32 {
+    fn extinction(&self, d: f32, depth: f32, erosion: impl FnOnce() -> f32) -> f32 {
         if d <= 0.0 {
             return 0.0;
         }
-        if d >= self.depth + self.edge {
+        if d >= depth + self.edge {
             return self.sigma;
         }
-        let v = if self.depth > 0.0 {
-            d - self.depth * erosion()
+        let v = if depth > 0.0 {
+            d - depth * erosion()
         } else {
             d
         };
@@ -151,16 +156,17 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     if g <= 1.0 || !g.is_finite() {
         return (0.0, false);
     }
-    let (mut ssum, mut wsum) = (0.0, 0.0);
+    let (mut ssum, mut esum, mut wsum) = (0.0, 0.0, 0.0);
     for &(f, k) in &act[..n] {
         let w = f - 0.5 * fmax;
         if w > 0.0 {
             ssum += w * hits[k as usize].slope;
+            esum += w * hits[k as usize].depth;
             wsum += w;
         }
     }
     let d = (g - 1.0) * wsum / ssum.max(1e-30);
-    let sigma = p.extinction(d, || {
+    let sigma = p.extinction(d, esum / wsum, || {
         let mut sum = 0.0;
         for &(f, k) in &act[..n] {
             let w = f - 0.5 * fmax;
@@ -199,14 +205,17 @@ mod tests {
             phase: 0.0,
             inv_threshold: 1.0,
         };
-        assert_eq!(p.extinction(-0.1, || unreachable!()), 0.0);
-        assert_eq!(p.extinction(0.0, || unreachable!()), 0.0);
-        assert_eq!(p.extinction(0.07, || unreachable!()), 10.0);
+        let e = p.depth;
+        assert_eq!(p.extinction(-0.1, e, || unreachable!()), 0.0);
+        assert_eq!(p.extinction(0.0, e, || unreachable!()), 0.0);
+        assert_eq!(p.extinction(0.07, e, || unreachable!()), 10.0);
         // On a billow top (erosion 0) the edge ramp starts at the iso-surface; in a crease
         // (erosion 1) the surface is carved in by the full depth.
-        assert_eq!(p.extinction(0.02, || 0.0), 10.0);
-        assert_eq!(p.extinction(0.02, || 1.0), 0.0);
-        assert!((p.extinction(0.005, || 0.0) - 5.0).abs() < 1e-5);
+        assert_eq!(p.extinction(0.02, e, || 0.0), 10.0);
+        assert_eq!(p.extinction(0.02, e, || 1.0), 0.0);
+        assert!((p.extinction(0.005, e, || 0.0) - 5.0).abs() < 1e-5);
+        // A thin blob's capped depth cannot carve deeper than the cap.
+        assert_eq!(p.extinction(0.02, 0.005, || 1.0), 10.0);
     }
 
     #[test]
