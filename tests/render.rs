@@ -598,7 +598,11 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
         let Target::Fit { mesh, .. } = &scene.file.target else {
             continue;
         };
-        let mesh = nephele::mesh::load(mesh).unwrap().mesh;
+        let mut mesh = nephele::mesh::load(mesh).unwrap().mesh;
+        // The blobs are placed by the scene's target transform; so is the mesh.
+        for p in &mut mesh.positions {
+            *p = scene.file.transform.apply_point(*p);
+        }
         let mut setup = shot::shot_setup(&scene, &RenderOptions::default()).unwrap();
         (setup.width, setup.height) = (160, 90);
         let cache = std::env::temp_dir().join(format!("nephele-silhouette-{name}"));
