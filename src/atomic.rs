@@ -5,13 +5,53 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// The temporary path used while writing `target`: hidden, same folder, ends in `.tmp`.
+/// The temporary path used while writing `target`: hidden, same folder, ends in `.tmp`, and
+/// unique to this process ([`process_token`]), so that processes writing the same file at once
+/// (farm tasks refitting a missing target cache) never share a temporary file.
 pub fn temp_path(target: &Path) -> PathBuf {
     let name = target
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".into());
-    target.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+    target.with_file_name(format!(".{name}.{}.tmp", process_token()))
+}
+
+/// This process's id and its start time in nanoseconds (`1234-5678`), fixed for the process's
+/// life. The process id alone collides across the machines of a farm sharing one folder, and in
+/// containers (where every task may be process 1).
+pub fn process_token() -> &'static str {
+    static TOKEN: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TOKEN.get_or_init(|| {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos() % 1_000_000_000_000)
+            .unwrap_or(0);
+        format!("{}-{nanos}", std::process::id())
+    })
+}
+
+/// Check, without leaving anything behind, that files can be written in `dir` (which need not
+/// exist yet): its nearest existing ancestor must be a folder in which a file can be created.
+pub fn check_writable(dir: &Path) -> io::Result<()> {
+    let mut existing = dir;
+    while !existing.exists() {
+        match existing.parent() {
+            Some(p) if !p.as_os_str().is_empty() => existing = p,
+            _ => {
+                existing = Path::new(".");
+                break;
+            }
+        }
+    }
+    if !existing.is_dir() {
+        return Err(io::Error::other(format!(
+            "{} is not a folder",
+            existing.display()
+        )));
+    }
+    let probe = existing.join(format!(".nephele-probe.{}.tmp", process_token()));
+    File::create(&probe)?;
+    std::fs::remove_file(&probe)
 }
 
 /// Write `target` through `body` atomically. Parent folders are created. On any error the
@@ -60,6 +100,19 @@ mod tests {
         assert!(!temp_path(&target).exists());
         write_bytes_atomically(&target, b"done").unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"done");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn writable_check_creates_nothing() {
+        let dir = std::env::temp_dir().join(format!("nephele-writable-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        check_writable(&dir.join("a/b")).unwrap();
+        assert!(!dir.join("a").exists());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        // A folder below a file can never be created (even by root).
+        std::fs::write(dir.join("file"), b"x").unwrap();
+        assert!(check_writable(&dir.join("file/out")).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

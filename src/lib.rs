@@ -4,7 +4,8 @@
 //!
 //! The pipeline, one module a stage:
 //! [`mesh`] → [`decompose`] → [`blobby`] (field, fit, codec, polygonize) → [`animate`] →
-//! [`render`], with [`scene`] tying a shot together and [`pipeline`] running a fit.
+//! [`render`], with [`scene`] tying a shot together, [`pipeline`] running a fit and [`export`]
+//! taking the cloud out (OpenVDB / Mitsuba density grids, the shot as a USD stage).
 #![warn(missing_docs)]
 // `!(x > 0.0)` is used on purpose: it rejects NaN along with non-positive values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -16,6 +17,8 @@ pub mod atomic;
 pub mod blobby;
 pub mod decompose;
 pub mod eval;
+pub mod export;
+pub mod farm;
 pub mod geometry;
 pub mod mesh;
 pub mod pipeline;

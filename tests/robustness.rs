@@ -389,3 +389,87 @@ fn interrupted_render_leaves_no_finished_looking_partial_frame() {
     assert_eq!(pngs, 24);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bad_farm_requests_fail_before_any_work() {
+    let dir = scratch("farm");
+    std::fs::write(
+        dir.join("ok.ron"),
+        "Scene(target: Fit(mesh: \"builtin:sphere\", blobs: 10), shot: (fps: 4, seconds: 1.0))",
+    )
+    .unwrap();
+    std::fs::write(dir.join("file"), b"not a folder").unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["render", "ok.ron", "--output", "out", "--task", "4/4"],
+            "below 4",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "out", "--task", "0/0"],
+            "at least 1",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "out", "--task", "auto/4"],
+            "SLURM_ARRAY_TASK_ID",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "out", "--task", "0/5"],
+            "at most 4 tasks",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "out", "--task", "1"],
+            "not I/N",
+        ),
+        (
+            vec![
+                "farm", "ok.ron", "--engine", "slurm", "--output", "out", "--chunk", "5",
+            ],
+            "--chunk 5",
+        ),
+        (
+            vec![
+                "farm", "ok.ron", "--engine", "slurm", "--output", "out", "--chunk", "0",
+            ],
+            "--chunk 0",
+        ),
+        (
+            vec![
+                "farm", "ok.ron", "--engine", "k8s", "--output", "out", "--submit",
+            ],
+            "kubectl",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "file/out"],
+            "not writable",
+        ),
+        (
+            vec!["render", "ok.ron", "--output", "file/out", "--task", "0/2"],
+            "not writable",
+        ),
+        (
+            vec!["prepare", "ok.ron", "--output", "file/out"],
+            "not writable",
+        ),
+        (
+            vec![
+                "farm", "ok.ron", "--engine", "slurm", "--output", "file/out",
+            ],
+            "not writable",
+        ),
+    ];
+    for (args, expect) in &cases {
+        let mut cmd = bin();
+        for v in nephele::scene::chunk::ARRAY_INDEX_VARS {
+            cmd.env_remove(v);
+        }
+        let out = cmd.args(args).current_dir(&dir).output().unwrap();
+        let t = text(&out);
+        assert!(!out.status.success(), "{args:?} succeeded:\n{t}");
+        assert!(
+            !t.contains("panicked") && t.contains(expect),
+            "{args:?}: expected {expect:?} in:\n{t}"
+        );
+        assert_nothing_left(&dir, &["ok.ron", "file"]);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -2,10 +2,13 @@
 
 pub mod codec;
 pub mod eval;
+pub mod farm;
 pub mod fit;
 pub mod mesh;
+pub mod prepare;
 pub mod preview;
 pub mod render;
+pub mod usd;
 
 use clap::{Parser, Subcommand};
 
@@ -35,6 +38,12 @@ pub enum Command {
     Encode(codec::EncodeArgs),
     /// Decode a binary model back to a RON model file.
     Decode(codec::DecodeArgs),
+    /// Fit and cache a scene's target once, before a farm renders its frames.
+    Prepare(prepare::Args),
+    /// Write (and with --submit, submit) a farm's jobs: prepare, then one task per frame chunk.
+    Farm(farm::Args),
+    /// Write a scene's shot as a USD stage: animated camera, sun, sky and the frame VDBs.
+    Usd(usd::Args),
 }
 
 /// Run the parsed command.
@@ -47,6 +56,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Preview(a) => preview::run(a),
         Command::Encode(a) => codec::run_encode(a),
         Command::Decode(a) => codec::run_decode(a),
+        Command::Prepare(a) => prepare::run(a),
+        Command::Farm(a) => farm::run(a),
+        Command::Usd(a) => usd::run(a),
     }
 }
 

@@ -29,6 +29,40 @@ pub struct Args {
     /// Print the wall time of each stage at the end.
     #[arg(long)]
     pub timings: bool,
+    /// Render only chunk I (0-based) of N contiguous chunks of the frames: `I/N`, or `auto/N`
+    /// to read I from the job array (SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX or
+    /// AWS_BATCH_JOB_ARRAY_INDEX). See README "Rendering on a farm".
+    #[arg(long, value_parser = parse_task)]
+    pub task: Option<TaskArg>,
+    /// Formats to write per frame, overriding the scene's `output.formats`: a comma-separated
+    /// list of exr, png, vdb (OpenVDB density grid) and vol (Mitsuba density grid).
+    #[arg(long, value_delimiter = ',', value_parser = parse_format)]
+    pub formats: Vec<scene::Format>,
+}
+
+/// A `--task` value: chunk `index` of `count`; `index` is `None` for `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TaskArg {
+    /// 0-based chunk index, or `None` to read it from the job array's environment.
+    pub index: Option<u32>,
+    /// Number of chunks.
+    pub count: u32,
+}
+
+fn parse_task(s: &str) -> Result<TaskArg, String> {
+    let usage = || format!("'{s}' is not I/N (chunk I of N, 0-based) nor auto/N");
+    let (i, n) = s.split_once('/').ok_or_else(usage)?;
+    let count = n.trim().parse::<u32>().map_err(|_| usage())?;
+    let index = match i.trim() {
+        "auto" => None,
+        i => Some(i.parse::<u32>().map_err(|_| usage())?),
+    };
+    Ok(TaskArg { index, count })
+}
+
+fn parse_format(s: &str) -> Result<scene::Format, String> {
+    scene::Format::from_name(s)
+        .ok_or_else(|| format!("'{s}' is not a format (use exr, png, vdb or vol)"))
 }
 
 /// A `--frames` value: bounds left open are filled from the shot.
@@ -40,7 +74,14 @@ pub struct FrameArg {
     pub last: Option<u32>,
 }
 
-fn parse_frames(s: &str) -> Result<FrameArg, String> {
+impl FrameArg {
+    /// The inclusive range, open bounds filled from a shot of `total` frames.
+    pub fn resolve(self, total: u32) -> (u32, u32) {
+        (self.first.unwrap_or(1), self.last.unwrap_or(total))
+    }
+}
+
+pub(crate) fn parse_frames(s: &str) -> Result<FrameArg, String> {
     let num = |t: &str| -> Result<Option<u32>, String> {
         let t = t.trim();
         if t.is_empty() {
@@ -62,25 +103,47 @@ fn parse_frames(s: &str) -> Result<FrameArg, String> {
 
 /// Run `nephele render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = scene::load_scene(&args.scene)?;
+    let mut scene = scene::load_scene(&args.scene)?;
+    if !args.formats.is_empty() {
+        scene.file.output.formats = args.formats.clone();
+    }
     let total = scene.file.shot.frame_count();
-    let frames = args
-        .frames
-        .map(|f| (f.first.unwrap_or(1), f.last.unwrap_or(total)));
-    let opts = RenderOptions {
+    let frames = args.frames.map(|f| f.resolve(total));
+    let mut opts = RenderOptions {
         frames,
         output: args.output,
         preview: args.preview,
         force: args.force,
         dump_blobs: args.dump_blobs,
     };
-    let setup = scene::shot::shot_setup(&scene, &opts)?;
+    let mut setup = scene::shot::shot_setup(&scene, &opts)?;
+    if let Some(task) = args.task {
+        let (index, frames) = task_frames(task, setup.frames.clone())?;
+        eprintln!(
+            "task {index}/{}: frames {}..{} of {}..{}",
+            task.count,
+            frames.start(),
+            frames.end(),
+            setup.frames.start(),
+            setup.frames.end()
+        );
+        opts.frames = Some((*frames.start(), *frames.end()));
+        setup = scene::shot::shot_setup(&scene, &opts)?;
+    }
+    nephele::atomic::check_writable(&setup.dir)
+        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
     let count = (setup.frames.end() - setup.frames.start() + 1) as u64;
     let bar = nephele::progress::bar(&scene.name, count);
     let report = scene::render_shot(&scene, &opts, &mut |f| {
         bar.inc(1);
         if !f.skipped {
-            bar.println(format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds));
+            let line = format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds);
+            // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
+            if bar.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                bar.println(line);
+            }
         }
     })
     .with_context(|| format!("rendering {}", args.scene.display()))?;
@@ -116,6 +179,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The index of `task` (read from the environment for `auto`) and the frames of its chunk of
+/// `frames`.
+fn task_frames(
+    task: TaskArg,
+    frames: std::ops::RangeInclusive<u32>,
+) -> anyhow::Result<(u32, std::ops::RangeInclusive<u32>)> {
+    use nephele::scene::chunk;
+    let index = match task.index {
+        Some(i) => i,
+        None => chunk::index_from_env(task.count, |var| std::env::var(var).ok())?,
+    };
+    Ok((index, chunk::chunk(frames, index, task.count)?))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -130,5 +207,15 @@ mod tests {
         assert_eq!(parse_frames("12"), Ok(f(Some(12), Some(12))));
         assert!(parse_frames("a..3").is_err());
         assert!(parse_frames("").is_err());
+    }
+
+    #[test]
+    fn tasks_parse() {
+        let t = |index, count| TaskArg { index, count };
+        assert_eq!(parse_task("2/4"), Ok(t(Some(2), 4)));
+        assert_eq!(parse_task("auto/8"), Ok(t(None, 8)));
+        assert!(parse_task("2").is_err());
+        assert!(parse_task("a/4").is_err());
+        assert!(parse_task("-1/4").is_err());
     }
 }

@@ -6,6 +6,14 @@
 //! linear, no exposure. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
 //! scene's sky, that is exactly what the PNG shows before exposure and tone mapping.
 //!
+//! EXR metadata ([`FrameMetadata`], written by [`write_exr_with`]): the OpenEXR standard
+//! attributes `worldToCamera` and `worldToNDC` (m44f, row-vector convention `p' = p·M` as in
+//! Imath) so a compositor can re-project, and the strings `nephele/scene`, `nephele/frame`,
+//! `nephele/seed`, `nephele/version`. Camera space is OpenEXR's: left-handed, +x right, +y up,
+//! +z the view direction, origin at the eye. NDC: `(0, 0)` the top-left and `(1, 1)` the
+//! bottom-right corner of the image after the homogeneous divide (`z` is `1/depth`, not a
+//! depth). Header attributes are sorted by name, so a frame is byte-identical across runs.
+//!
 //! PNG: `(rgb + (1 − A)·sky(dir)) · 2^exposure`, ACES filmic curve (Narkowicz 2015 fit), sRGB
 //! transfer, 8-bit RGB.
 
@@ -22,8 +30,118 @@ pub fn write_exr(path: &Path, frame: &Frame) -> std::io::Result<()> {
     crate::atomic::write_bytes_atomically(path, &encode_exr(frame)?)
 }
 
+/// [`write_exr`] with the camera and provenance attributes of `meta`.
+pub fn write_exr_with(path: &Path, frame: &Frame, meta: &FrameMetadata) -> std::io::Result<()> {
+    crate::atomic::write_bytes_atomically(path, &encode_exr_with(frame, Some(meta))?)
+}
+
 /// The EXR file's bytes (see the module doc for the channels).
 pub fn encode_exr(frame: &Frame) -> std::io::Result<Vec<u8>> {
+    encode_exr_with(frame, None)
+}
+
+/// What a frame's EXR header says about where it came from, besides its pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameMetadata {
+    /// `worldToCamera` (row-major m44f, row-vector convention).
+    pub world_to_camera: [f32; 16],
+    /// `worldToNDC` (row-major m44f, row-vector convention).
+    pub world_to_ndc: [f32; 16],
+    /// `nephele/…` strings: `(key without the prefix, value)`.
+    pub strings: Vec<(String, String)>,
+}
+
+impl FrameMetadata {
+    /// The matrices of `camera` for a `width × height` image, as the renderer casts its rays
+    /// ([`CameraRays`]), and the provenance strings.
+    pub fn new(
+        camera: &super::Camera,
+        width: u32,
+        height: u32,
+        strings: Vec<(String, String)>,
+    ) -> FrameMetadata {
+        let (world_to_camera, world_to_ndc) =
+            CameraFrame::new(camera, width, height).exr_matrices();
+        FrameMetadata {
+            world_to_camera: world_to_camera.map(|v| v as f32),
+            world_to_ndc: world_to_ndc.map(|v| v as f32),
+            strings,
+        }
+    }
+}
+
+/// The camera of a frame as the renderer casts its rays: eye, orthonormal axes and the
+/// image-plane half extents at distance 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraFrame {
+    /// Eye position.
+    pub eye: glam::DVec3,
+    /// Unit axis toward the image's right edge.
+    pub right: glam::DVec3,
+    /// Unit axis toward the image's top edge.
+    pub up: glam::DVec3,
+    /// Unit view direction.
+    pub forward: glam::DVec3,
+    /// `tan` of half the horizontal field of view.
+    pub tan_half_h: f64,
+    /// `tan` of half the vertical field of view.
+    pub tan_half_v: f64,
+}
+
+impl CameraFrame {
+    /// The frame of `camera` for a `width × height` image, read off the renderer's own rays
+    /// ([`CameraRays`]): the centre ray is the view direction, and the rays through the right
+    /// and top edge midpoints give the right and up axes with their image-plane scales.
+    pub fn new(camera: &super::Camera, width: u32, height: u32) -> CameraFrame {
+        let rays = CameraRays::new(camera, width, height);
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let forward = glam::DVec3::from(Vec3::from(rays.forward));
+        // A ray d through the image plane at distance 1 along f is d/(d·f) = f + offset.
+        let offset = |px: f32, py: f32| {
+            let d = glam::DVec3::from(Vec3::from(rays.dir(px, py)));
+            d / d.dot(forward) - forward
+        };
+        let (right_half, up_half) = (offset(w, 0.5 * h), offset(0.5 * w, 0.0));
+        CameraFrame {
+            eye: glam::DVec3::from(Vec3::from(rays.position)),
+            right: right_half.normalize(),
+            up: up_half.normalize(),
+            forward,
+            tan_half_h: right_half.length(),
+            tan_half_v: up_half.length(),
+        }
+    }
+
+    /// `(worldToCamera, worldToNDC)`, row-major with row vectors (see the module doc).
+    pub fn exr_matrices(&self) -> ([f64; 16], [f64; 16]) {
+        let mut view = [0.0; 16];
+        for (col, axis) in [self.right, self.up, self.forward].into_iter().enumerate() {
+            for row in 0..3 {
+                view[row * 4 + col] = axis[row];
+            }
+            view[12 + col] = -self.eye.dot(axis);
+        }
+        view[15] = 1.0;
+        // Camera → homogeneous NDC: X = x·a + z/2, Y = −y·b + z/2, Z = 1, W = z.
+        let (a, b) = (0.5 / self.tan_half_h, 0.5 / self.tan_half_v);
+        let proj = [
+            a, 0.0, 0.0, 0.0, //
+            0.0, -b, 0.0, 0.0, //
+            0.5, 0.5, 0.0, 1.0, //
+            0.0, 0.0, 1.0, 0.0,
+        ];
+        let mut ndc = [0.0; 16];
+        for r in 0..4 {
+            for c in 0..4 {
+                ndc[r * 4 + c] = (0..4).map(|k| view[r * 4 + k] * proj[k * 4 + c]).sum();
+            }
+        }
+        (view, ndc)
+    }
+}
+
+/// The EXR file's bytes with the attributes of `meta`, if any.
+pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::Result<Vec<u8>> {
     use exr::prelude::*;
     let size = (frame.width as usize, frame.height as usize);
     let chan = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
@@ -35,18 +153,81 @@ pub fn encode_exr(frame: &Frame) -> std::io::Result<Vec<u8>> {
         chan("A", frame.alpha.clone()),
         chan("Z", frame.depth.clone()),
     ]));
-    let layer = Layer::new(
-        size,
-        LayerAttributes::named("nephele"),
-        Encoding::SMALL_LOSSLESS,
-        channels,
-    );
+    let mut attributes = LayerAttributes::named("nephele");
+    if let Some(meta) = meta {
+        attributes.world_to_camera = Some(meta.world_to_camera);
+        attributes.world_to_normalized_device = Some(meta.world_to_ndc);
+        for (key, value) in &meta.strings {
+            attributes.other.insert(
+                latin1_text(&format!("nephele/{key}")),
+                exr::meta::attribute::AttributeValue::Text(latin1_text(value)),
+            );
+        }
+    }
+    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
     let mut bytes = Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| std::io::Error::other(format!("EXR encoding failed: {e}")))?;
-    Ok(bytes.into_inner())
+    let mut bytes = bytes.into_inner();
+    sort_header_attributes(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// `s` as EXR text (Latin-1); other characters become `?`.
+fn latin1_text(s: &str) -> exr::meta::attribute::Text {
+    let safe: String = s
+        .chars()
+        .map(|c| if (c as u32) < 256 { c } else { '?' })
+        .collect();
+    exr::meta::attribute::Text::new_or_panic(safe)
+}
+
+/// Sort a single-part EXR file's header attributes by name, in place. The `exr` crate keeps
+/// custom attributes in a `HashMap`, whose order changes from run to run; the header's length
+/// and so every offset after it stay the same.
+fn sort_header_attributes(bytes: &mut [u8]) -> std::io::Result<()> {
+    let bad = || std::io::Error::other("EXR header could not be parsed for sorting");
+    const MULTIPART: u8 = 0x10; // bit 12 of the version field
+    if bytes.len() < 8 || bytes[5] & MULTIPART != 0 {
+        return Err(bad());
+    }
+    let mut at = 8;
+    let mut attributes: Vec<(Vec<u8>, Vec<u8>)> = Vec::new();
+    while *bytes.get(at).ok_or_else(bad)? != 0 {
+        let start = at;
+        let name_end = start
+            + bytes[start..]
+                .iter()
+                .position(|&b| b == 0)
+                .ok_or_else(bad)?;
+        let type_end = name_end
+            + 1
+            + bytes[name_end + 1..]
+                .iter()
+                .position(|&b| b == 0)
+                .ok_or_else(bad)?;
+        let size_at = type_end + 1;
+        let size = i32::from_le_bytes(
+            bytes
+                .get(size_at..size_at + 4)
+                .ok_or_else(bad)?
+                .try_into()
+                .map_err(|_| bad())?,
+        );
+        let end = size_at + 4 + usize::try_from(size).map_err(|_| bad())?;
+        let whole = bytes.get(start..end).ok_or_else(bad)?.to_vec();
+        attributes.push((bytes[start..name_end].to_vec(), whole));
+        at = end;
+    }
+    attributes.sort();
+    let mut write = 8;
+    for (_, whole) in attributes {
+        bytes[write..write + whole.len()].copy_from_slice(&whole);
+        write += whole.len();
+    }
+    Ok(())
 }
 
 /// Write `frame` composited over the sky, exposed and tone-mapped to 8-bit sRGB, atomically.

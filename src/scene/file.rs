@@ -198,22 +198,43 @@ impl Shot {
     }
 }
 
-/// An output image format.
+/// An output format: an image, or the cloud's density grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Format {
     /// Linear HDR OpenEXR (RGBA + depth).
     Exr,
     /// Tone-mapped 8-bit sRGB PNG over the sky.
     Png,
+    /// OpenVDB: the renderer's extinction as a fog-volume float grid `density`.
+    Vdb,
+    /// Mitsuba's binary `.vol` grid of the same extinction (dense over the cloud's box).
+    Vol,
 }
 
 impl Format {
+    /// Every format, in the order of their names in [`Format::from_name`].
+    pub const ALL: [Format; 4] = [Format::Exr, Format::Png, Format::Vdb, Format::Vol];
+
     /// File extension.
     pub fn extension(self) -> &'static str {
         match self {
             Format::Exr => "exr",
             Format::Png => "png",
+            Format::Vdb => "vdb",
+            Format::Vol => "vol",
         }
+    }
+
+    /// The format whose extension is `name` (any case), e.g. `vdb`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.extension().eq_ignore_ascii_case(name.trim()))
+    }
+
+    /// True for the density grids (sampled from the frame's medium, not its image).
+    pub fn is_grid(self) -> bool {
+        matches!(self, Format::Vdb | Format::Vol)
     }
 }
 
@@ -227,6 +248,9 @@ pub struct OutputSpec {
     pub name: Option<String>,
     /// Formats written per frame.
     pub formats: Vec<Format>,
+    /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
+    /// diagonal / 256).
+    pub voxel: Option<f64>,
 }
 
 impl Default for OutputSpec {
@@ -235,6 +259,7 @@ impl Default for OutputSpec {
             dir: None,
             name: None,
             formats: vec![Format::Exr, Format::Png],
+            voxel: None,
         }
     }
 }
@@ -351,6 +376,14 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         return Err(bad(
             "output.formats",
             "list at least one format".to_string(),
+        ));
+    }
+    if let Some(v) = s.output.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(bad(
+            "output.voxel",
+            format!("must be a positive number of world units, got {v}"),
         ));
     }
     if let Target::Fit {

@@ -1,7 +1,7 @@
 //! Scene files (RON): a target, an animation scheme, camera, lighting, material, shot and
 //! output settings; and rendering a shot to frame files with resume and frame ranges.
 //!
-//! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png` (and optionally
+//! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png/.vdb/.vol` (and optionally
 //! `<name>_0001.blobs.ron`), written atomically so that a frame whose files all exist is
 //! finished.
 //!
@@ -10,6 +10,7 @@
 //! directory, so renders land in the repository's `renders/` when run from its root.
 
 pub mod camera;
+pub mod chunk;
 pub mod file;
 pub mod shot;
 pub mod target;

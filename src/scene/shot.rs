@@ -222,6 +222,7 @@ pub fn render_shot(
         let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
         report.target = Some(origin);
         let prep = timings.stage("plan", || prepare(scene, model))?;
+        let voxel = grid_voxel(scene, &prep)?;
         let (mut render_s, mut write_s) = (0.0, 0.0);
         for frame in setup.frames.clone() {
             if !todo.contains(&frame) {
@@ -235,7 +236,13 @@ pub fn render_shot(
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
             let image = render::render_frame(&settings, &blobs, k);
             let rendered = Instant::now();
-            write_frame(scene, &setup.dir, frame, &image, &settings, opts, &blobs)?;
+            let out = FrameOutput {
+                image: &image,
+                settings: &settings,
+                blobs: &blobs,
+                voxel,
+            };
+            write_frame(scene, &setup.dir, frame, &out, opts)?;
             render_s += (rendered - start).as_secs_f64();
             write_s += rendered.elapsed().as_secs_f64();
             report.rendered += 1;
@@ -267,26 +274,83 @@ fn skipped(frame: u32, of: u32) -> FrameReport {
     }
 }
 
-/// Write one frame's files atomically; the blob dump (if any) is written last.
+/// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
+/// 256), checked against the target's box before any frame is rendered; 0 when the scene
+/// writes no grid.
+pub fn grid_voxel(scene: &Scene, prep: &Prepared) -> Result<f64, SceneError> {
+    if !scene.file.output.formats.iter().any(|f| f.is_grid()) {
+        return Ok(0.0);
+    }
+    let voxel = crate::export::voxel_size(scene.file.output.voxel, &prep.bounds);
+    crate::export::check_voxel_budget(voxel, &prep.bounds).map_err(|message| {
+        SceneError::Invalid {
+            path: scene.path.clone(),
+            field: "output.voxel".into(),
+            message,
+        }
+    })?;
+    Ok(voxel)
+}
+
+/// What one frame's files are made from.
+struct FrameOutput<'a> {
+    image: &'a render::Frame,
+    settings: &'a RenderSettings,
+    blobs: &'a [Blob],
+    /// Voxel size of the density grids.
+    voxel: f64,
+}
+
+/// Write one frame's files atomically; the blob dump (if any) is written last. The density
+/// grid is sampled once, if a grid format is asked for.
 fn write_frame(
     scene: &Scene,
     dir: &Path,
     frame: u32,
-    image: &render::Frame,
-    settings: &RenderSettings,
+    out: &FrameOutput,
     opts: &RenderOptions,
-    blobs: &[Blob],
 ) -> Result<(), SceneError> {
+    let FrameOutput {
+        image,
+        settings,
+        blobs,
+        voxel,
+    } = *out;
     let paths = frame_paths(scene, dir, frame, opts.dump_blobs);
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| SceneError::Io { path, source }
     };
+    let mut grid = None;
     for (format, path) in scene.file.output.formats.iter().zip(&paths) {
+        if format.is_grid() && grid.is_none() {
+            let g = crate::export::frame_grid(settings, blobs, voxel).map_err(|e| {
+                SceneError::Invalid {
+                    path: scene.path.clone(),
+                    field: "output.voxel".into(),
+                    message: format!("frame {frame}: {e}"),
+                }
+            })?;
+            grid = Some(g);
+        }
         match format {
-            super::Format::Exr => render::output::write_exr(path, image).map_err(io(path))?,
+            super::Format::Exr => {
+                let meta = frame_metadata(scene, settings, frame);
+                render::output::write_exr_with(path, image, &meta).map_err(io(path))?
+            }
             super::Format::Png => {
                 render::output::write_png(path, image, settings).map_err(io(path))?
+            }
+            super::Format::Vdb => {
+                let g = grid.as_ref().expect("sampled above");
+                let uuid_seed =
+                    crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
+                crate::export::write_vdb(path, g, crate::export::GRID_NAME, uuid_seed)
+                    .map_err(io(path))?
+            }
+            super::Format::Vol => {
+                let g = grid.as_ref().expect("sampled above");
+                crate::export::write_vol(path, g).map_err(io(path))?
             }
         }
     }
@@ -296,6 +360,28 @@ fn write_frame(
         crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
     }
     Ok(())
+}
+
+/// The EXR attributes of frame `frame` (1-based): the camera's matrices and the strings
+/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/seed` (the scene's) and
+/// `nephele/version` (the crate's). Nothing depends on the run, so frames stay byte-identical.
+pub fn frame_metadata(
+    scene: &Scene,
+    settings: &RenderSettings,
+    frame: u32,
+) -> render::output::FrameMetadata {
+    let file = scene
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let strings = vec![
+        ("scene".to_string(), file),
+        ("frame".to_string(), frame.to_string()),
+        ("seed".to_string(), scene.file.seed.to_string()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+    ];
+    render::output::FrameMetadata::new(&settings.camera, settings.width, settings.height, strings)
 }
 
 /// A frame's blob list as RON (a list of `Blob`s, index = identity).

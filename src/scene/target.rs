@@ -1,14 +1,15 @@
 //! The scene's target model: read from a model file, or fitted from a mesh and cached beside the
-//! output as `target-<hash>.ron`, where the hash covers the mesh (the bytes of a mesh file, or
-//! the `builtin:` name), the fit settings, the model format version and the crate version. A
-//! cache file that is missing or unreadable is refitted; an unchanged one is reused.
+//! output as `target-<hash>.ron`, where the hash ([`fit_cache_key`]) covers the mesh (the bytes
+//! of a mesh file, or the `builtin:` name), the whole fit configuration, the fit's algorithm
+//! version ([`FIT_ALGORITHM_VERSION`]) and the model format version. A cache file that is
+//! missing or unreadable is refitted; an unchanged one is reused.
 
 use std::path::{Path, PathBuf};
 
 use super::{Scene, SceneError, Target};
 use crate::blobby::BlobModel;
 use crate::blobby::model_file::MODEL_VERSION;
-use crate::pipeline::{self, FitConfig};
+use crate::pipeline::{self, FIT_ALGORITHM_VERSION, FitConfig};
 
 /// Where the target came from.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -51,11 +52,14 @@ pub fn load_target(
                     source,
                 })?
             };
-            let settings = format!(
-                "nephele {} model v{MODEL_VERSION}; blobs {blobs} candidates {candidates} samples {samples} seed {seed}",
-                env!("CARGO_PKG_VERSION")
-            );
-            let hash = fnv1a(&[&identity, settings.as_bytes()]);
+            let cfg = FitConfig {
+                blobs: *blobs,
+                candidates: *candidates,
+                samples: *samples,
+                seed: *seed,
+                ..FitConfig::default()
+            };
+            let hash = fit_cache_key(&identity, &cfg);
             let cache = cache_dir.join(format!("target-{hash:016x}.ron"));
             if cache.exists()
                 && let Ok(m) = crate::blobby::load_model(&cache)
@@ -66,13 +70,6 @@ pub fn load_target(
                 scene: scene.path.clone(),
                 source,
             })?;
-            let cfg = FitConfig {
-                blobs: *blobs,
-                candidates: *candidates,
-                samples: *samples,
-                seed: *seed,
-                ..FitConfig::default()
-            };
             let out = pipeline::fit(&cfg, &loaded).map_err(|source| SceneError::Fit {
                 scene: scene.path.clone(),
                 source,
@@ -81,6 +78,17 @@ pub fn load_target(
             Ok((out.model, TargetOrigin::Fitted(cache)))
         }
     }
+}
+
+/// The fitted-target cache key of a mesh (`identity`: its file's bytes or `builtin:` name)
+/// fitted with `cfg`: the whole configuration serialized as JSON (every field, nested settings
+/// included, floats in round-trip precision), [`FIT_ALGORITHM_VERSION`] and the model format
+/// version.
+pub fn fit_cache_key(identity: &[u8], cfg: &FitConfig) -> u64 {
+    // A plain struct always serializes; `Debug` would serve as well should that ever fail.
+    let config = serde_json::to_string(cfg).unwrap_or_else(|_| format!("{cfg:?}"));
+    let settings = format!("fit v{FIT_ALGORITHM_VERSION}; model v{MODEL_VERSION}; {config}");
+    fnv1a(&[identity, settings.as_bytes()])
 }
 
 /// 64-bit FNV-1a over the concatenated parts, each followed by its length (so part boundaries
@@ -110,5 +118,69 @@ mod tests {
         assert_eq!(fnv1a(&[]), 0xcbf2_9ce4_8422_2325);
         assert_ne!(fnv1a(&[b"ab", b"c"]), fnv1a(&[b"a", b"bc"]));
         assert_eq!(fnv1a(&[b"duck"]), fnv1a(&[b"duck"]));
+    }
+
+    #[test]
+    fn cache_key_covers_the_whole_fit_configuration() {
+        use crate::pipeline::Optimisation;
+        let base = FitConfig::default();
+        let key = fit_cache_key(b"builtin:duck", &base);
+        assert_ne!(key, fit_cache_key(b"builtin:bunny", &base));
+        // Settings the scene file cannot set still count (an optimiser change is seen).
+        let changed = [
+            FitConfig {
+                epsilon: base.epsilon * 1.5,
+                ..base.clone()
+            },
+            FitConfig {
+                voxels: base.voxels + 1,
+                ..base.clone()
+            },
+            FitConfig {
+                optimisation: Optimisation::None,
+                ..base.clone()
+            },
+            FitConfig {
+                initial_a: 0.5,
+                ..base.clone()
+            },
+        ];
+        for cfg in &changed {
+            assert_ne!(fit_cache_key(b"builtin:duck", cfg), key, "{cfg:?}");
+        }
+    }
+
+    /// Pins what a small fit produces to [`FIT_ALGORITHM_VERSION`]. When this fails, the fit's
+    /// output changed: bump `FIT_ALGORITHM_VERSION` (in `src/pipeline.rs`) and update both
+    /// numbers here, so that old cached targets are refitted.
+    #[test]
+    fn fit_algorithm_version_is_pinned_to_the_fit_output() {
+        let mesh = crate::mesh::load("builtin:duck").unwrap();
+        let cfg = FitConfig {
+            blobs: 16,
+            candidates: 200,
+            samples: 3000,
+            ..FitConfig::default()
+        };
+        let model = pipeline::fit(&cfg, &mesh).unwrap().model;
+        let bits: Vec<u8> = model
+            .blobs
+            .iter()
+            .flat_map(|b| {
+                let q = b.rotation;
+                [b.center.to_array(), b.semi_axes.to_array()]
+                    .into_iter()
+                    .flatten()
+                    .chain([q.x, q.y, q.z, q.w, b.a, b.b])
+                    .collect::<Vec<f64>>()
+            })
+            .flat_map(|v| v.to_bits().to_le_bytes())
+            .collect();
+        let output = fnv1a(&[&bits]);
+        assert_eq!(
+            (FIT_ALGORITHM_VERSION, output),
+            (2, 16_409_085_176_781_328_839),
+            "the fit's output changed: bump FIT_ALGORITHM_VERSION and re-pin"
+        );
     }
 }

@@ -1,0 +1,222 @@
+//! `nephele farm`: write (and optionally submit) the jobs that render a shot on a farm — a
+//! prepare job, then an array of one task per frame chunk. See [`nephele::farm`].
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, bail};
+use nephele::farm::{self, FarmJob, K8sPod};
+use nephele::scene::{self, RenderOptions, chunk};
+
+use super::render::FrameArg;
+
+/// The job-array engine to write jobs for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Engine {
+    /// Slurm: two batch scripts (prepare, then a job array depending on it).
+    Slurm,
+    /// Kubernetes: two Job manifests (prepare, then an Indexed Job).
+    K8s,
+}
+
+/// Arguments of `nephele farm`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file (RON); see scenes/README.md.
+    pub scene: PathBuf,
+    /// The job-array engine.
+    #[arg(long, value_enum)]
+    pub engine: Engine,
+    /// At most this many frames per task: the frames are cut into ceil(frames / CHUNK)
+    /// contiguous chunks of balanced sizes [default: 10, or all frames if fewer].
+    #[arg(long)]
+    pub chunk: Option<u32>,
+    /// Frames to render, as for `render --frames` (default: the scene's `frames`, else the
+    /// whole shot).
+    #[arg(long, value_parser = super::render::parse_frames)]
+    pub frames: Option<FrameArg>,
+    /// Render previews (`render --preview`): the jobs then live in <output>/preview/.
+    #[arg(long)]
+    pub preview: bool,
+    /// Output folder (default: the scene's `output.dir`); the job files are written in the
+    /// frames folder, the logs in its logs/ subfolder.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Submit the jobs with `sbatch --parsable` (Slurm only) and print their ids.
+    #[arg(long)]
+    pub submit: bool,
+    /// An extra sbatch option for both jobs, e.g. `--sbatch-arg=--partition=render`
+    /// (repeatable).
+    #[arg(long = "sbatch-arg", value_name = "ARG", allow_hyphen_values = true)]
+    pub sbatch_args: Vec<String>,
+    /// The nephele program the tasks run (default: this program's absolute path for Slurm,
+    /// `nephele` on the image's PATH for k8s).
+    #[arg(long, value_name = "PATH")]
+    pub nephele: Option<PathBuf>,
+    /// Container image holding nephele (k8s).
+    #[arg(long, default_value = "nephele:latest")]
+    pub image: String,
+    /// PersistentVolumeClaim holding the scene and output folders (k8s); it is mounted at
+    /// their common ancestor so every path is the same in the pods.
+    #[arg(long, default_value = "nephele-shared")]
+    pub volume_claim: String,
+}
+
+/// Frames per task when `--chunk` is not given.
+const DEFAULT_CHUNK: u32 = 10;
+
+/// Run `nephele farm`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.submit && args.engine == Engine::K8s {
+        bail!(
+            "--submit submits to Slurm only; apply the k8s manifests with kubectl (README, \"Rendering on a farm\")"
+        );
+    }
+    let scene = scene::load_scene(&args.scene)?;
+    let total = scene.file.shot.frame_count();
+    let opts = RenderOptions {
+        frames: args.frames.map(|f| f.resolve(total)),
+        output: args.output.clone(),
+        preview: args.preview,
+        ..RenderOptions::default()
+    };
+    let setup = scene::shot::shot_setup(&scene, &opts)?;
+    let frame_count = setup.frames.end() - setup.frames.start() + 1;
+    let chunk_frames = args.chunk.unwrap_or(DEFAULT_CHUNK.min(frame_count));
+    let tasks = chunk::task_count(&setup.frames, chunk_frames)?;
+    nephele::atomic::check_writable(&setup.dir)
+        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
+    let absolute =
+        |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+    let dir = absolute(&setup.dir)?;
+    let nephele = match (&args.nephele, args.engine) {
+        (Some(p), _) => p.clone(),
+        (None, Engine::Slurm) => {
+            std::env::current_exe().context("finding this program's path (give --nephele)")?
+        }
+        (None, Engine::K8s) => PathBuf::from("nephele"),
+    };
+    let job = FarmJob {
+        name: if args.preview {
+            format!("{}-preview", scene.name)
+        } else {
+            scene.name.clone()
+        },
+        nephele,
+        scene: absolute(&args.scene)?,
+        output: absolute(&setup.cache_dir)?,
+        frames: setup.frames.clone(),
+        tasks,
+        preview: args.preview,
+        logs: dir.join("logs"),
+    };
+    let write = |name: String, text: String| -> anyhow::Result<PathBuf> {
+        let path = dir.join(name);
+        nephele::atomic::write_bytes_atomically(&path, text.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+        Ok(path)
+    };
+    let (prepare, array) = match args.engine {
+        Engine::Slurm => {
+            std::fs::create_dir_all(&job.logs)
+                .with_context(|| format!("creating {}", job.logs.display()))?;
+            (
+                write(
+                    format!("{}.prepare.sbatch", scene.name),
+                    farm::slurm_prepare_script(&job, &args.sbatch_args),
+                )?,
+                write(
+                    format!("{}.sbatch", scene.name),
+                    farm::slurm_array_script(&job, &args.sbatch_args),
+                )?,
+            )
+        }
+        Engine::K8s => {
+            let pod = K8sPod {
+                image: args.image.clone(),
+                volume_claim: args.volume_claim.clone(),
+                mount: farm::k8s_mount(&job).with_context(|| {
+                    format!(
+                        "k8s: the scene {} and the output folder {} share no folder below / to mount \
+                         the volume at; put both under one shared folder",
+                        job.scene.display(),
+                        job.output.display()
+                    )
+                })?,
+            };
+            (
+                write(
+                    format!("{}.prepare.k8s.yaml", scene.name),
+                    farm::k8s_prepare_job(&job, &pod),
+                )?,
+                write(
+                    format!("{}.k8s.yaml", scene.name),
+                    farm::k8s_indexed_job(&job, &pod),
+                )?,
+            )
+        }
+    };
+    println!(
+        "{} tasks of at most {} frames (frames {}..{}):\n  {}\n  {}",
+        tasks,
+        chunk_frames,
+        setup.frames.start(),
+        setup.frames.end(),
+        prepare.display(),
+        array.display()
+    );
+    match (args.engine, args.submit) {
+        (Engine::Slurm, true) => submit(&prepare, &array, tasks),
+        (Engine::Slurm, false) => {
+            println!(
+                "submit with:\n  prep=$(sbatch --parsable {})\n  sbatch --dependency=afterok:$prep {}",
+                farm::shell_quote(&prepare.to_string_lossy()),
+                farm::shell_quote(&array.to_string_lossy())
+            );
+            Ok(())
+        }
+        (Engine::K8s, _) => {
+            let prep_job = farm::k8s_name(&format!("{}-prepare", job.name));
+            println!(
+                "run with:\n  kubectl apply -f {}\n  kubectl wait --for=condition=complete --timeout=1h job/{prep_job}\n  kubectl apply -f {}",
+                farm::shell_quote(&prepare.to_string_lossy()),
+                farm::shell_quote(&array.to_string_lossy())
+            );
+            Ok(())
+        }
+    }
+}
+
+/// Submit the prepare script, then the array depending on it; print the job ids.
+fn submit(prepare: &Path, array: &Path, tasks: u32) -> anyhow::Result<()> {
+    let prep = sbatch(&[prepare.as_os_str()])?;
+    let dependency = format!("--dependency=afterok:{prep}");
+    let arr = sbatch(&[dependency.as_ref(), array.as_os_str()])?;
+    println!(
+        "prepare job: {prep}\nrender array: {arr} ({tasks} tasks)\nwatch it: squeue -j {prep},{arr}"
+    );
+    Ok(())
+}
+
+/// Run `sbatch --parsable ARGS` and return the job id it prints.
+fn sbatch(args: &[&std::ffi::OsStr]) -> anyhow::Result<String> {
+    let out = Command::new("sbatch")
+        .arg("--parsable")
+        .args(args)
+        .output()
+        .context("running sbatch (is this a Slurm submit host? the job scripts are written; submit them by hand)")?;
+    if !out.status.success() {
+        bail!(
+            "sbatch failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    // --parsable prints `id` or `id;cluster`.
+    let id = text.trim().split(';').next().unwrap_or("").to_string();
+    if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
+        bail!("sbatch printed {:?}, not a job id", text.trim());
+    }
+    Ok(id)
+}

@@ -1,0 +1,46 @@
+//! `nephele prepare`: fit and cache a scene's target once, before a farm's array tasks render.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use nephele::scene::target::TargetOrigin;
+use nephele::scene::{self, RenderOptions};
+
+/// Arguments of `nephele prepare`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file (RON); see scenes/README.md.
+    pub scene: PathBuf,
+    /// Output folder, as given to `render` (default: the scene's `output.dir`).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Prepare for `render --preview` (creates <output>/preview/; the fit cache is shared).
+    #[arg(long)]
+    pub preview: bool,
+}
+
+/// Run `nephele prepare`: check the output folder, fit (or find) the target cache, plan the
+/// animation once to surface its errors, and create the frames folder.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scene = scene::load_scene(&args.scene)?;
+    let opts = RenderOptions {
+        output: args.output,
+        preview: args.preview,
+        ..RenderOptions::default()
+    };
+    let setup = scene::shot::shot_setup(&scene, &opts)?;
+    nephele::atomic::check_writable(&setup.dir)
+        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
+    let (model, origin) = scene::load_target(&scene, &setup.cache_dir)
+        .with_context(|| format!("preparing {}", args.scene.display()))?;
+    scene::shot::prepare(&scene, model)?;
+    std::fs::create_dir_all(&setup.dir)
+        .with_context(|| format!("creating {}", setup.dir.display()))?;
+    match origin {
+        TargetOrigin::Fitted(p) => eprintln!("fitted the target, cached in {}", p.display()),
+        TargetOrigin::Cached(p) => eprintln!("target already cached in {}", p.display()),
+        TargetOrigin::ModelFile(p) => eprintln!("target is the model file {}", p.display()),
+    }
+    eprintln!("{}: ready to render", setup.dir.display());
+    Ok(())
+}

@@ -1,0 +1,75 @@
+//! Clouds that leave nephele: the renderer's density as OpenVDB and Mitsuba `.vol` grids, and
+//! the shot as a USD stage.
+//!
+//! In: a frame's blobs and [`RenderSettings`] (the same the frame is rendered with). Out: a
+//! [`DensityGrid`] sampled through the renderer's own [`crate::render::Medium`] (so the files
+//! hold exactly the extinction the renderer marches through, noise included), written by
+//! [`vdb`] and [`vol`]; [`usd`] writes the stage that ties camera, lights and the frame VDBs.
+//!
+//! Units: world (the scene's, after the target transform); values are extinction per world unit.
+
+pub mod grid;
+pub mod usd;
+
+pub mod vdb;
+pub mod vol;
+
+pub use grid::{DensityGrid, GridError, Leaf, sample_medium};
+pub use vdb::write_vdb;
+pub use vol::write_vol;
+
+use crate::blobby::Blob;
+use crate::geometry::Aabb;
+use crate::render::{BlobMedium, RenderSettings};
+
+/// Default voxel size: this fraction of the target's bounding-box diagonal.
+pub const DEFAULT_VOXELS_PER_DIAGONAL: f64 = 256.0;
+
+/// Most voxels the target's box may hold at the chosen voxel size (beyond, the voxel size is
+/// taken for a mistake).
+pub const MAX_TARGET_VOXELS: u64 = 1 << 31;
+
+/// The grid's name in VDB files.
+pub const GRID_NAME: &str = "density";
+
+/// The voxel size for `target` bounds: `voxel` if given, else the diagonal / 256.
+pub fn voxel_size(voxel: Option<f64>, target: &Aabb) -> f64 {
+    voxel.unwrap_or(target.diagonal() / DEFAULT_VOXELS_PER_DIAGONAL)
+}
+
+/// Voxels the target's box holds at `voxel` (each side rounded up); an error message when it
+/// is more than [`MAX_TARGET_VOXELS`] or `voxel` is not positive.
+pub fn check_voxel_budget(voxel: f64, target: &Aabb) -> Result<u64, String> {
+    if !(voxel.is_finite() && voxel > 0.0) {
+        return Err(format!("must be a positive number, got {voxel}"));
+    }
+    let size = target.max - target.min;
+    let count = [size.x, size.y, size.z]
+        .iter()
+        .map(|&s| (s / voxel).ceil().max(1.0))
+        .product::<f64>();
+    if count > MAX_TARGET_VOXELS as f64 {
+        return Err(format!(
+            "{voxel} gives {count:.3e} voxels over the target's box, more than {MAX_TARGET_VOXELS}; \
+             use a larger voxel (the default is the target's diagonal / 256 = {:.6})",
+            target.diagonal() / DEFAULT_VOXELS_PER_DIAGONAL
+        ));
+    }
+    Ok(count as u64)
+}
+
+/// The extinction grid of one frame: `blobs` as the renderer sees them with `settings`,
+/// sampled at voxel centres on the lattice `voxel·ℤ³`. Empty when no blob is live.
+pub fn frame_grid(
+    settings: &RenderSettings,
+    blobs: &[Blob],
+    voxel: f64,
+) -> Result<DensityGrid, GridError> {
+    // Extinction does not depend on the light grid, so it is not built.
+    let medium = BlobMedium::without_light(settings, blobs);
+    match medium.bounds() {
+        Some((lo, hi)) => sample_medium(&medium, lo, hi, voxel),
+        None if voxel.is_finite() && voxel > 0.0 => Ok(DensityGrid::empty(voxel)),
+        None => Err(GridError::BadVoxel(voxel)),
+    }
+}

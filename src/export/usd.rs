@@ -1,0 +1,289 @@
+//! The shot as a USD ASCII stage (`.usda`): the camera animated per frame, the sun as a
+//! `DistantLight`, the sky as a `DomeLight` colour, and the cloud as a `Volume` whose
+//! `OpenVDBAsset` field `density` points at the frame VDBs (time-sampled `filePath`).
+//!
+//! Conventions: time code `k` is frame `k` (1-based), `timeCodesPerSecond` = `framesPerSecond` =
+//! the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
+//! stage on import if they are not metres). Matrices are USD's row-vector `matrix4d` (the last
+//! row is the translation). The camera looks down its local −Z with +Y up, as nephele's does;
+//! its lens uses the schema's tenths-of-a-unit convention with a 24-unit vertical aperture:
+//! `focalLength = 12 / tan(fov_v/2)`, `horizontalAperture = 2·focalLength·tan(fov_h/2)`, both
+//! half-angles read off the renderer's own rays. A `DistantLight` shines down its local −Z, so
+//! the sun's rotation takes −Z to the direction sunlight travels.
+
+use std::fmt::Write as _;
+use std::path::{Component, Path, PathBuf};
+
+use glam::DVec3;
+
+use crate::render::output::CameraFrame;
+use crate::render::{Sky, Sun};
+use crate::scene::Scene;
+use crate::scene::shot::{Prepared, ShotSetup, frame_settings};
+
+/// Vertical aperture of the stage's camera (tenths of a unit, the schema's convention).
+pub const VERTICAL_APERTURE: f64 = 24.0;
+
+/// Everything a shot's stage holds.
+#[derive(Clone, Debug)]
+pub struct Stage {
+    /// Frames per second.
+    pub fps: f64,
+    /// The camera of frames `1..=cameras.len()`.
+    pub cameras: Vec<CameraFrame>,
+    /// Near and far clipping distances.
+    pub clipping: [f64; 2],
+    /// The sun.
+    pub sun: Sun,
+    /// The sky.
+    pub sky: Sky,
+    /// The VDB file of each frame, as written into the stage (relative to the stage's folder).
+    pub vdb_paths: Vec<String>,
+    /// A line of documentation for the stage.
+    pub doc: String,
+}
+
+/// The stage of a scene's whole shot (full resolution), for a stage file in `stage_dir`: the
+/// cameras of every frame as rendered, the lights, and the frame VDBs of `setup.dir` (written by
+/// `nephele render --formats vdb`), relative to `stage_dir` where possible.
+pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: &Path) -> Stage {
+    let cameras = (0..setup.total)
+        .map(|k| {
+            let settings = frame_settings(scene, prep, setup, k, false);
+            CameraFrame::new(&settings.camera, setup.width, setup.height)
+        })
+        .collect();
+    let length = prep.bounds.diagonal().max(1e-12);
+    let vdb_paths = (1..=setup.total)
+        .map(|frame| {
+            let file = setup.dir.join(format!("{}_{frame:04}.vdb", scene.name));
+            relative_to(&file, stage_dir)
+        })
+        .collect();
+    Stage {
+        fps: scene.file.shot.fps,
+        cameras,
+        clipping: [1e-3 * length, 1e3 * length],
+        sun: scene.file.sun,
+        sky: scene.file.sky,
+        vdb_paths,
+        doc: format!(
+            "nephele {} shot of {}",
+            env!("CARGO_PKG_VERSION"),
+            scene
+                .path
+                .file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default()
+        ),
+    }
+}
+
+/// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.
+fn relative_to(path: &Path, base: &Path) -> String {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let (path, base) = (abs(path), abs(base));
+    let (p, b): (Vec<Component>, Vec<Component>) =
+        (path.components().collect(), base.components().collect());
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return path.to_string_lossy().into_owned();
+    }
+    let mut rel = PathBuf::new();
+    if common == b.len() {
+        rel.push(".");
+    }
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    p[common..].iter().for_each(|c| rel.push(c));
+    rel.to_string_lossy().replace('\\', "/")
+}
+
+/// The `.usda` text of `stage`.
+pub fn stage_text(stage: &Stage) -> String {
+    let n = stage.cameras.len().max(1);
+    let mut s = String::new();
+    let _ = writeln!(s, "#usda 1.0");
+    let _ = writeln!(s, "(");
+    let _ = writeln!(s, "    defaultPrim = \"shot\"");
+    let _ = writeln!(s, "    doc = {}", quoted(&stage.doc));
+    let _ = writeln!(s, "    startTimeCode = 1");
+    let _ = writeln!(s, "    endTimeCode = {n}");
+    let _ = writeln!(s, "    timeCodesPerSecond = {}", num(stage.fps));
+    let _ = writeln!(s, "    framesPerSecond = {}", num(stage.fps));
+    let _ = writeln!(s, "    upAxis = \"Y\"");
+    let _ = writeln!(s, "    metersPerUnit = 1");
+    let _ = writeln!(s, ")\n");
+    let _ = writeln!(s, "def Xform \"shot\"\n{{");
+    camera(&mut s, stage);
+    sun(&mut s, &stage.sun);
+    sky(&mut s, &stage.sky);
+    volume(&mut s, &stage.vdb_paths);
+    let _ = writeln!(s, "}}");
+    s
+}
+
+fn camera(s: &mut String, stage: &Stage) {
+    let first = stage.cameras.first();
+    let tan_v = first.map_or(1.0, |c| c.tan_half_v);
+    let tan_h = first.map_or(1.0, |c| c.tan_half_h);
+    let focal = 0.5 * VERTICAL_APERTURE / tan_v;
+    let _ = writeln!(s, "    def Camera \"camera\"\n    {{");
+    let _ = writeln!(s, "        float focalLength = {}", num(focal));
+    let _ = writeln!(
+        s,
+        "        float horizontalAperture = {}",
+        num(2.0 * focal * tan_h)
+    );
+    let _ = writeln!(
+        s,
+        "        float verticalAperture = {}",
+        num(VERTICAL_APERTURE)
+    );
+    let [near, far] = stage.clipping;
+    let _ = writeln!(
+        s,
+        "        float2 clippingRange = ({}, {})",
+        num(near),
+        num(far)
+    );
+    let _ = writeln!(s, "        token projection = \"perspective\"");
+    let _ = writeln!(s, "        matrix4d xformOp:transform.timeSamples = {{");
+    for (k, c) in stage.cameras.iter().enumerate() {
+        // Camera to world: local +X right, +Y up, +Z backward (it looks down −Z).
+        let m = matrix([c.right, c.up, -c.forward], c.eye);
+        let _ = writeln!(s, "            {}: {m},", k + 1);
+    }
+    let _ = writeln!(s, "        }}");
+    let _ = writeln!(
+        s,
+        "        uniform token[] xformOpOrder = [\"xformOp:transform\"]"
+    );
+    let _ = writeln!(s, "    }}\n");
+}
+
+fn sun(s: &mut String, sun: &Sun) {
+    let d = sun
+        .direction
+        .as_dvec3()
+        .try_normalize()
+        .unwrap_or(DVec3::NEG_Y);
+    // Local −Z is the direction the light travels, so local +Z is −d.
+    let z = -d;
+    let x = [DVec3::Y, DVec3::X]
+        .into_iter()
+        .find_map(|h| h.cross(z).try_normalize())
+        .unwrap_or(DVec3::X);
+    let y = z.cross(x);
+    let _ = writeln!(s, "    def DistantLight \"sun\"\n    {{");
+    let _ = writeln!(
+        s,
+        "        float inputs:intensity = {}",
+        num(sun.intensity as f64)
+    );
+    let _ = writeln!(
+        s,
+        "        color3f inputs:color = {}",
+        vec3(sun.color.as_dvec3())
+    );
+    let _ = writeln!(s, "        float inputs:angle = 0.53");
+    let _ = writeln!(
+        s,
+        "        matrix4d xformOp:transform = {}",
+        matrix([x, y, z], DVec3::ZERO)
+    );
+    let _ = writeln!(
+        s,
+        "        uniform token[] xformOpOrder = [\"xformOp:transform\"]"
+    );
+    let _ = writeln!(s, "    }}\n");
+}
+
+fn sky(s: &mut String, sky: &Sky) {
+    let Sky::Gradient { zenith, horizon } = *sky;
+    let mean = 0.5 * (zenith + horizon).as_dvec3();
+    let _ = writeln!(s, "    def DomeLight \"sky\" (");
+    let _ = writeln!(s, "        customData = {{");
+    let _ = writeln!(
+        s,
+        "            float3 nephele_zenith = {}",
+        vec3(zenith.as_dvec3())
+    );
+    let _ = writeln!(
+        s,
+        "            float3 nephele_horizon = {}",
+        vec3(horizon.as_dvec3())
+    );
+    let _ = writeln!(s, "        }}\n    )\n    {{");
+    let _ = writeln!(s, "        color3f inputs:color = {}", vec3(mean));
+    let _ = writeln!(s, "        float inputs:intensity = 1");
+    let _ = writeln!(s, "    }}\n");
+}
+
+fn volume(s: &mut String, paths: &[String]) {
+    let _ = writeln!(s, "    def Volume \"cloud\"\n    {{");
+    let _ = writeln!(s, "        rel field:density = </shot/cloud/density>\n");
+    let _ = writeln!(s, "        def OpenVDBAsset \"density\"\n        {{");
+    let _ = writeln!(s, "            token fieldName = \"density\"");
+    let _ = writeln!(s, "            asset filePath.timeSamples = {{");
+    for (k, p) in paths.iter().enumerate() {
+        let _ = writeln!(s, "                {}: @{}@,", k + 1, p.replace('@', "%40"));
+    }
+    let _ = writeln!(s, "            }}");
+    let _ = writeln!(s, "        }}");
+    let _ = writeln!(s, "    }}");
+}
+
+/// A row-vector `matrix4d`: rows are the three axes, then the translation.
+fn matrix(axes: [DVec3; 3], t: DVec3) -> String {
+    let row = |v: DVec3, w: f64| format!("({}, {}, {}, {})", num(v.x), num(v.y), num(v.z), num(w));
+    format!(
+        "( {}, {}, {}, {} )",
+        row(axes[0], 0.0),
+        row(axes[1], 0.0),
+        row(axes[2], 0.0),
+        row(t, 1.0)
+    )
+}
+
+fn vec3(v: DVec3) -> String {
+    format!("({}, {}, {})", num(v.x), num(v.y), num(v.z))
+}
+
+/// A number as USD reads it: the shortest round-trip decimal (`1`, `0.25`, `1e-7`).
+fn num(v: f64) -> String {
+    let v = if v == 0.0 { 0.0 } else { v }; // no "-0"
+    format!("{v}")
+}
+
+/// A USD string literal.
+fn quoted(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_and_matrices_are_usd_literals() {
+        assert_eq!(num(1.0), "1");
+        assert_eq!(num(-0.0), "0");
+        assert_eq!(num(0.25), "0.25");
+        let m = matrix([DVec3::X, DVec3::Y, DVec3::Z], DVec3::new(1.0, 2.0, 3.0));
+        assert_eq!(
+            m,
+            "( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (1, 2, 3, 1) )"
+        );
+        assert_eq!(quoted("a \"b\""), "\"a \\\"b\\\"\"");
+        assert_eq!(
+            relative_to(Path::new("/r/out/a.vdb"), Path::new("/r/out")),
+            "./a.vdb"
+        );
+        assert_eq!(
+            relative_to(Path::new("/r/out/a.vdb"), Path::new("/r/usd")),
+            "../out/a.vdb"
+        );
+    }
+}

@@ -1,0 +1,294 @@
+//! OpenVDB writer: one uncompressed float grid (`Tree_float_5_4_3`) per file.
+//!
+//! No crate writes OpenVDB, so this is the format written out by hand, as OpenVDB 10 lays it
+//! out (file version 224, little-endian, strings as a `u32` length and the bytes):
+//!
+//! 1. Header: magic `0x56444220` (`i64`), file version 224, library version 10.0, "has grid
+//!    offsets" = 1, a 36-character UUID, no file metadata, one grid.
+//! 2. The grid's descriptor: name, type `Tree_float_5_4_3`, no instance parent, and the absolute
+//!    offsets of the grid, of its voxel data and of its end.
+//! 3. The grid: compression flags 0 (none); metadata `class` = `fog volume` and `name`; the
+//!    transform, a `UniformScaleTranslateMap` (translation, scale, voxel size, inverse scale,
+//!    inverse scale squared, inverse twice the scale — the order of OpenVDB's `Maps.h`).
+//! 4. Topology: one buffer; the root (background 0, no tiles, its Internal-5 children in
+//!    ascending origin order); each internal node's child mask, value mask (empty), the byte 6
+//!    ("no mask compression, all values"), every slot's tile value (0) and its children in slot
+//!    order; each leaf's value mask.
+//! 5. Voxel data: per leaf in the same order, its value mask, the byte 6 and 512 `f32`.
+//!
+//! The tree is Root → Internal-5 (32³ slots of 128-voxel Internal-4 nodes) → Internal-4 (16³
+//! slots of 8³ leaves) → leaf. Active voxels are those with a positive value; everything else is
+//! the background 0. The output is a pure function of the grid, its name and the UUID seed.
+
+use std::path::Path;
+
+use super::grid::{DensityGrid, LEAF_VOXELS, Leaf};
+
+/// OpenVDB file format version written (OpenVDB 10's).
+pub const FILE_VERSION: u32 = 224;
+
+/// Log2 of the voxels spanned by an Internal-5 node (`4096 = 2^12`) and an Internal-4 node
+/// (`128 = 2^7`), and a leaf (`8 = 2^3`).
+const LOG2_SPAN: [u32; 3] = [12, 7, 3];
+
+/// Write `grid` as an OpenVDB file holding one fog-volume float grid called `name`, atomically.
+/// `uuid_seed` makes the file's UUID (the same seed gives the same bytes).
+pub fn write_vdb(
+    path: &Path,
+    grid: &DensityGrid,
+    name: &str,
+    uuid_seed: u64,
+) -> std::io::Result<()> {
+    crate::atomic::write_bytes_atomically(path, &encode_vdb(grid, name, uuid_seed))
+}
+
+/// The OpenVDB file's bytes (see the module doc).
+pub fn encode_vdb(grid: &DensityGrid, name: &str, uuid_seed: u64) -> Vec<u8> {
+    let mut out = Vec::with_capacity(1024 + grid.leaves.len() * (2 * 64 + 1 + 4 * LEAF_VOXELS));
+    put_i64(&mut out, 0x5644_4220);
+    put_u32(&mut out, FILE_VERSION);
+    put_u32(&mut out, 10);
+    put_u32(&mut out, 0);
+    out.push(1);
+    out.extend_from_slice(uuid(uuid_seed).as_bytes());
+    put_i32(&mut out, 0);
+    put_i32(&mut out, 1);
+    // Descriptor, with the three offsets patched once known.
+    put_str(&mut out, name);
+    put_str(&mut out, "Tree_float_5_4_3");
+    put_str(&mut out, "");
+    let offsets_at = out.len();
+    out.extend_from_slice(&[0; 24]);
+    let grid_start = out.len();
+    put_u32(&mut out, 0);
+    put_i32(&mut out, 2);
+    for (key, value) in [("class", "fog volume"), ("name", name)] {
+        put_str(&mut out, key);
+        put_str(&mut out, "string");
+        put_str(&mut out, value);
+    }
+    put_str(&mut out, "UniformScaleTranslateMap");
+    let h = grid.voxel;
+    let transform = [
+        grid.translation,
+        [h; 3],
+        [h; 3],
+        [1.0 / h; 3],
+        [1.0 / (h * h); 3],
+        [0.5 / h; 3],
+    ];
+    for v in transform.iter().flatten() {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    let tree = Tree::new(&grid.leaves);
+    tree.write_topology(&mut out);
+    let block_start = out.len();
+    // Leaves in the tree's depth-first order (not `grid.leaves`' origin order).
+    for leaf in tree.leaves() {
+        let mask = value_mask(leaf);
+        mask.iter()
+            .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
+        out.push(6);
+        leaf.values
+            .iter()
+            .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+    }
+    let end = out.len();
+    for (n, pos) in [grid_start, block_start, end].into_iter().enumerate() {
+        let at = offsets_at + 8 * n;
+        out[at..at + 8].copy_from_slice(&(pos as i64).to_le_bytes());
+    }
+    out
+}
+
+/// An Internal-4 node: its slot in its parent and its leaves with their slots.
+type Mid<'a> = (usize, Vec<(usize, &'a Leaf)>);
+
+/// The leaves grouped into Internal-5 and Internal-4 nodes, all in OpenVDB's write order.
+struct Tree<'a> {
+    /// Internal-5 nodes: origin and Internal-4 children.
+    tops: Vec<([i32; 3], Vec<Mid<'a>>)>,
+}
+
+impl<'a> Tree<'a> {
+    /// Group `leaves` (any order) by their ancestors, each level sorted as OpenVDB iterates it:
+    /// root children by origin, internal children by slot.
+    fn new(leaves: &'a [Leaf]) -> Tree<'a> {
+        let mut keyed: Vec<([i32; 3], usize, usize, &Leaf)> = leaves
+            .iter()
+            .map(|l| {
+                let top = align(l.origin, LOG2_SPAN[0]);
+                let mid = align(l.origin, LOG2_SPAN[1]);
+                (
+                    top,
+                    slot(mid, top, LOG2_SPAN[1], 5),
+                    slot(l.origin, mid, LOG2_SPAN[2], 4),
+                    l,
+                )
+            })
+            .collect();
+        keyed.sort_by_key(|k| (k.0, k.1, k.2));
+        let mut tops: Vec<([i32; 3], Vec<Mid>)> = Vec::new();
+        for (top, mid, leaf_slot, leaf) in keyed {
+            if tops.last().is_none_or(|t| t.0 != top) {
+                tops.push((top, Vec::new()));
+            }
+            let mids = &mut tops.last_mut().expect("pushed").1;
+            if mids.last().is_none_or(|m| m.0 != mid) {
+                mids.push((mid, Vec::new()));
+            }
+            mids.last_mut().expect("pushed").1.push((leaf_slot, leaf));
+        }
+        Tree { tops }
+    }
+
+    /// The leaves depth-first, in the order OpenVDB reads their voxel data.
+    fn leaves(&self) -> impl Iterator<Item = &'a Leaf> + '_ {
+        self.tops
+            .iter()
+            .flat_map(|t| t.1.iter())
+            .flat_map(|m| m.1.iter().map(|l| l.1))
+    }
+
+    /// The tree's topology section.
+    fn write_topology(&self, out: &mut Vec<u8>) {
+        put_i32(out, 1); // buffer count
+        put_f32(out, 0.0); // background
+        put_u32(out, 0); // tiles
+        put_u32(out, self.tops.len() as u32);
+        for (origin, mids) in &self.tops {
+            origin.iter().for_each(|&c| put_i32(out, c));
+            internal_node(out, 5, mids.iter().map(|m| m.0));
+            for (_, leaves) in mids {
+                internal_node(out, 4, leaves.iter().map(|l| l.0));
+                for (_, leaf) in leaves {
+                    value_mask(leaf)
+                        .iter()
+                        .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
+                }
+            }
+        }
+    }
+}
+
+/// An internal node's own topology (masks and tile values, not its children's): `log2` slots
+/// per axis, children at `child_slots`.
+fn internal_node(out: &mut Vec<u8>, log2: u32, child_slots: impl Iterator<Item = usize>) {
+    let slots = 1usize << (3 * log2);
+    let mut child_mask = vec![0u64; slots / 64];
+    for s in child_slots {
+        child_mask[s >> 6] |= 1 << (s & 63);
+    }
+    child_mask
+        .iter()
+        .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
+    out.resize(out.len() + slots / 8, 0); // value mask: no active tiles
+    out.push(6);
+    out.resize(out.len() + 4 * slots, 0); // tile values: all 0.0 (background)
+}
+
+/// A leaf's value mask: bit `i` set where value `i` is positive.
+fn value_mask(leaf: &Leaf) -> [u64; 8] {
+    let mut mask = [0u64; 8];
+    for (i, &v) in leaf.values.iter().enumerate() {
+        if v > 0.0 {
+            mask[i >> 6] |= 1 << (i & 63);
+        }
+    }
+    mask
+}
+
+/// `c` rounded down to a multiple of `2^log2` (also for negative coordinates).
+fn align(c: [i32; 3], log2: u32) -> [i32; 3] {
+    c.map(|v| v & !((1 << log2) - 1))
+}
+
+/// Slot of the child at `child` inside the node at `node`: children span `2^child_log2` voxels
+/// and the node has `2^log2` of them per axis.
+fn slot(child: [i32; 3], node: [i32; 3], child_log2: u32, log2: u32) -> usize {
+    let [x, y, z] = std::array::from_fn(|a| ((child[a] - node[a]) >> child_log2) as usize);
+    (x << (2 * log2)) | (y << log2) | z
+}
+
+/// A version-4-shaped UUID string from a seed (deterministic, 36 characters).
+fn uuid(seed: u64) -> String {
+    let words = [crate::rng::mix64(seed), crate::rng::mix64(!seed)];
+    let hex: String = words.iter().map(|w| format!("{w:016x}")).collect();
+    format!(
+        "{}-{}-4{}-a{}-{}",
+        &hex[0..8],
+        &hex[8..12],
+        &hex[13..16],
+        &hex[17..20],
+        &hex[20..32]
+    )
+}
+
+fn put_i32(out: &mut Vec<u8>, v: i32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_u32(out: &mut Vec<u8>, v: u32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_i64(out: &mut Vec<u8>, v: i64) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_f32(out: &mut Vec<u8>, v: f32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_str(out: &mut Vec<u8>, s: &str) {
+    put_u32(out, s.len() as u32);
+    out.extend_from_slice(s.as_bytes());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leaf(origin: [i32; 3], set: &[usize]) -> Leaf {
+        let mut values = Box::new([0.0; LEAF_VOXELS]);
+        for &i in set {
+            values[i] = 1.0 + i as f32;
+        }
+        Leaf { origin, values }
+    }
+
+    #[test]
+    fn slots_and_alignment_follow_openvdb() {
+        assert_eq!(align([-1, 4095, 4096], 12), [-4096, 0, 4096]);
+        // Leaf at (8, 16, 24) in the Internal-4 at 0: slot (1 << 8) | (2 << 4) | 3.
+        assert_eq!(slot([8, 16, 24], [0; 3], 3, 4), 256 + 32 + 3);
+        // Internal-4 at (128, 0, 256) in the Internal-5 at 0: (1 << 10) | 2.
+        assert_eq!(slot([128, 0, 256], [0; 3], 7, 5), 1024 + 2);
+        assert_eq!(uuid(3).len(), 36);
+        assert_eq!(uuid(3), uuid(3));
+        assert_ne!(uuid(3), uuid(4));
+    }
+
+    #[test]
+    fn sizes_and_offsets_are_consistent() {
+        let grid = DensityGrid {
+            voxel: 0.5,
+            translation: [1.0, 2.0, 3.0],
+            leaves: vec![leaf([0, 0, 0], &[0, 511]), leaf([-8, 0, 4096], &[7])],
+        };
+        let bytes = encode_vdb(&grid, "density", 1);
+        // Two Internal-5 nodes (one per leaf), each with one Internal-4 child and one leaf.
+        let i5 = 2 * 32768 / 8 + 1 + 4 * 32768;
+        let i4 = 2 * 4096 / 8 + 1 + 4 * 4096;
+        let leaf_topo = 64;
+        let leaf_data = 64 + 1 + 4 * 512;
+        let topo = 4 + 4 + 4 + 4 + 2 * (12 + i5 + i4 + leaf_topo);
+        let i = |at: usize| i64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+        // Offsets follow the descriptor: name, type, parent strings after the 61-byte header.
+        let at = 8 + 4 * 3 + 1 + 36 + 4 + 4 + (4 + 7) + (4 + 16) + 4;
+        let (grid_start, block, end) = (i(at), i(at + 8), i(at + 16));
+        assert_eq!(grid_start, at + 24);
+        assert_eq!(end, bytes.len());
+        assert_eq!(end - block, 2 * leaf_data);
+        let meta = 4 + 4 + 2 * (4 + 6) + (4 + 5) + (4 + 10) + (4 + 4) + (4 + 7);
+        let transform = 4 + 24 + 18 * 8;
+        assert_eq!(block - grid_start, meta + transform + topo);
+        assert_eq!(encode_vdb(&grid, "density", 1), bytes, "deterministic");
+    }
+}

@@ -1,0 +1,336 @@
+//! Rendering a shot on a farm: the job files of a job-array engine.
+//!
+//! A farm render is two jobs. The *prepare* job runs `nephele prepare`, which fits and caches
+//! the target once. The *render* job is an array of `N` tasks; task `I` runs
+//! `nephele render SCENE --task I/N`, which renders chunk `I` of the frames (see
+//! [`crate::scene::chunk`]). Frames are written atomically and finished frames are skipped, so a
+//! task that is killed and requeued resumes where it stopped, and a task that starts without the
+//! cache refits the same target deterministically and renames its own copy into place.
+//!
+//! This module only writes text: Slurm batch scripts ([`slurm_prepare_script`],
+//! [`slurm_array_script`]) and Kubernetes Job manifests ([`k8s_prepare_job`],
+//! [`k8s_indexed_job`]). Every path in them is absolute, so they work from any folder.
+
+use std::ops::RangeInclusive;
+use std::path::{Path, PathBuf};
+
+/// One shot to render on a farm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FarmJob {
+    /// Job name (the scene's frame prefix, `-preview` added for previews).
+    pub name: String,
+    /// The nephele program the tasks run (absolute path, or a name on the nodes' `PATH`).
+    pub nephele: PathBuf,
+    /// The scene file (absolute).
+    pub scene: PathBuf,
+    /// The output folder given to every task as `--output` (absolute).
+    pub output: PathBuf,
+    /// 1-based inclusive frames, split among the tasks.
+    pub frames: RangeInclusive<u32>,
+    /// Number of array tasks.
+    pub tasks: u32,
+    /// Render previews (`--preview`).
+    pub preview: bool,
+    /// Folder of the tasks' logs (absolute; must exist before the jobs start).
+    pub logs: PathBuf,
+}
+
+impl FarmJob {
+    /// Arguments of the prepare job's `nephele` command.
+    pub fn prepare_args(&self) -> Vec<String> {
+        let mut v = vec![
+            "prepare".to_string(),
+            path_text(&self.scene),
+            "--output".into(),
+            path_text(&self.output),
+        ];
+        if self.preview {
+            v.push("--preview".into());
+        }
+        v
+    }
+
+    /// Arguments of an array task's `nephele` command; `task` is the `--task` value.
+    pub fn render_args(&self, task: &str) -> Vec<String> {
+        let mut v = vec![
+            "render".to_string(),
+            path_text(&self.scene),
+            "--output".into(),
+            path_text(&self.output),
+            "--frames".into(),
+            format!("{}..{}", self.frames.start(), self.frames.end()),
+            "--task".into(),
+            task.into(),
+        ];
+        if self.preview {
+            v.push("--preview".into());
+        }
+        v
+    }
+}
+
+/// The Slurm batch script of the prepare job. `sbatch_args` are extra `sbatch` options (one per
+/// `#SBATCH` line, e.g. `--partition=render`).
+pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
+    let mut s = slurm_header(job);
+    s.push_str(&format!("#SBATCH --job-name={}-prepare\n", job.name));
+    s.push_str(&format!(
+        "#SBATCH --output={}\n",
+        sbatch_path(&job.logs.join(format!("{}-prepare_%j.log", job.name)))
+    ));
+    s.push_str(&extra_lines(sbatch_args));
+    s.push_str("\nset -eu\n");
+    s.push_str(&format!(
+        "exec {}\n",
+        shell_command(&job.nephele, &job.prepare_args())
+    ));
+    s
+}
+
+/// The Slurm batch script of the render array: `--array=0-(N-1)`, `--requeue` (frames resume)
+/// and `--open-mode=append` (a requeued task's log keeps the earlier run). Submit it with
+/// `--dependency=afterok:<prepare job id>`.
+pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
+    let mut s = slurm_header(job);
+    s.push_str(&format!("#SBATCH --job-name={}\n", job.name));
+    s.push_str(&format!("#SBATCH --array=0-{}\n", job.tasks - 1));
+    s.push_str("#SBATCH --requeue\n#SBATCH --open-mode=append\n");
+    s.push_str(&format!(
+        "#SBATCH --output={}\n",
+        sbatch_path(&job.logs.join(format!("{}_%A_%a.log", job.name)))
+    ));
+    s.push_str(&extra_lines(sbatch_args));
+    s.push_str("\nset -eu\n");
+    // The task word is the one that must expand in the shell, so it is double-quoted; it is
+    // passed as "" (no other argument is empty) and swapped after quoting.
+    let task = format!("\"${{SLURM_ARRAY_TASK_ID}}/{}\"", job.tasks);
+    let words: Vec<String> = std::iter::once(path_text(&job.nephele))
+        .chain(job.render_args(""))
+        .map(|w| {
+            if w.is_empty() {
+                task.clone()
+            } else {
+                shell_quote(&w)
+            }
+        })
+        .collect();
+    s.push_str(&format!("exec {}\n", words.join(" ")));
+    s
+}
+
+fn slurm_header(job: &FarmJob) -> String {
+    format!(
+        "#!/bin/bash\n# Written by `nephele farm` (nephele {}): {} frames {}..{} in {} tasks.\n",
+        env!("CARGO_PKG_VERSION"),
+        path_text(&job.scene),
+        job.frames.start(),
+        job.frames.end(),
+        job.tasks
+    )
+}
+
+/// A path as an `#SBATCH` option value: double-quoted when it holds whitespace (sbatch splits
+/// `#SBATCH` lines on whitespace outside quotes).
+fn sbatch_path(p: &Path) -> String {
+    let t = path_text(p);
+    if t.contains(char::is_whitespace) {
+        format!("\"{t}\"")
+    } else {
+        t
+    }
+}
+
+fn extra_lines(sbatch_args: &[String]) -> String {
+    sbatch_args
+        .iter()
+        .map(|a| format!("#SBATCH {a}\n"))
+        .collect()
+}
+
+/// Where the pods of a Kubernetes job run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct K8sPod {
+    /// Container image holding nephele.
+    pub image: String,
+    /// PersistentVolumeClaim holding the scene and output folders.
+    pub volume_claim: String,
+    /// Where the claim is mounted: a folder holding the scene and the output folder, so that
+    /// every path is the same inside the pods ([`k8s_mount`]).
+    pub mount: PathBuf,
+}
+
+/// The Kubernetes Job that runs the prepare step.
+pub fn k8s_prepare_job(job: &FarmJob, pod: &K8sPod) -> String {
+    let mut s = k8s_head(job, &format!("{}-prepare", k8s_name(&job.name)));
+    s.push_str("  backoffLimit: 2\n");
+    s.push_str(&k8s_pod(job, pod, &job.prepare_args()));
+    s
+}
+
+/// The Kubernetes Indexed Job of the render array: `completionMode: Indexed` with `N`
+/// completions; each pod runs `nephele render … --task auto/N`, which reads
+/// `JOB_COMPLETION_INDEX`. A failed pod is retried (frames resume).
+pub fn k8s_indexed_job(job: &FarmJob, pod: &K8sPod) -> String {
+    let mut s = k8s_head(job, &k8s_name(&job.name));
+    s.push_str(&format!(
+        "  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimitPerIndex: 3\n  maxFailedIndexes: 0\n",
+        n = job.tasks
+    ));
+    let task = format!("auto/{}", job.tasks);
+    s.push_str(&k8s_pod(job, pod, &job.render_args(&task)));
+    s
+}
+
+fn k8s_head(job: &FarmJob, name: &str) -> String {
+    format!(
+        "# Written by `nephele farm --engine k8s` (nephele {}): {} frames {}..{} in {} tasks.\n\
+         apiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\nspec:\n",
+        env!("CARGO_PKG_VERSION"),
+        path_text(&job.scene),
+        job.frames.start(),
+        job.frames.end(),
+        job.tasks
+    )
+}
+
+fn k8s_pod(job: &FarmJob, pod: &K8sPod, args: &[String]) -> String {
+    let command: Vec<String> = std::iter::once(path_text(&job.nephele))
+        .chain(args.iter().cloned())
+        .map(|a| yaml_string(&a))
+        .collect();
+    format!(
+        "  template:\n    spec:\n      restartPolicy: Never\n      containers:\n      - name: nephele\n        image: {}\n        command: [{}]\n        volumeMounts:\n        - name: shared\n          mountPath: {}\n      volumes:\n      - name: shared\n        persistentVolumeClaim:\n          claimName: {}\n",
+        yaml_string(&pod.image),
+        command.join(", "),
+        yaml_string(&path_text(&pod.mount)),
+        yaml_string(&pod.volume_claim)
+    )
+}
+
+/// A Kubernetes object name: lowercase letters, digits and `-`, at most 63 characters.
+pub fn k8s_name(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect();
+    let s = s.trim_matches('-');
+    let s: String = s.chars().take(55).collect();
+    if s.is_empty() { "nephele".into() } else { s }
+}
+
+/// The deepest folder holding both the scene file and the output folder (absolute paths), or
+/// `None` when that is the root, which cannot be a volume's mount point.
+pub fn k8s_mount(job: &FarmJob) -> Option<PathBuf> {
+    let folder = job.scene.parent()?;
+    let mut common = PathBuf::new();
+    for (a, b) in folder.components().zip(job.output.components()) {
+        if a != b {
+            break;
+        }
+        common.push(a);
+    }
+    (common.components().count() > 1).then_some(common)
+}
+
+/// A YAML double-quoted scalar (JSON string syntax, which YAML accepts).
+fn yaml_string(s: &str) -> String {
+    serde_json::to_string(s).expect("strings always serialize")
+}
+
+fn path_text(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// `program args…` with every word single-quoted for a POSIX shell.
+pub fn shell_command(program: &Path, args: &[String]) -> String {
+    std::iter::once(path_text(program))
+        .chain(args.iter().cloned())
+        .map(|w| shell_quote(&w))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `s` single-quoted for a POSIX shell (`'` becomes `'\''`).
+pub fn shell_quote(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job() -> FarmJob {
+        FarmJob {
+            name: "duck-diffusion-preview".into(),
+            nephele: "/opt/nephele/bin/nephele".into(),
+            scene: "/farm/scenes/duck diffusion.ron".into(),
+            output: "/farm/renders/duck".into(),
+            frames: 1..=96,
+            tasks: 4,
+            preview: true,
+            logs: "/farm/renders/duck/preview/logs".into(),
+        }
+    }
+
+    #[test]
+    fn array_script_runs_one_chunk_per_task() {
+        let s = slurm_array_script(&job(), &["--partition=render".into()]);
+        assert!(s.starts_with("#!/bin/bash\n"));
+        for line in [
+            "#SBATCH --array=0-3\n",
+            "#SBATCH --requeue\n",
+            "#SBATCH --partition=render\n",
+            "#SBATCH --output=/farm/renders/duck/preview/logs/duck-diffusion-preview_%A_%a.log\n",
+            "exec '/opt/nephele/bin/nephele' 'render' '/farm/scenes/duck diffusion.ron' '--output' \
+             '/farm/renders/duck' '--frames' '1..96' '--task' \"${SLURM_ARRAY_TASK_ID}/4\" '--preview'\n",
+        ] {
+            assert!(s.contains(line), "missing {line:?} in\n{s}");
+        }
+        // sbatch reads #SBATCH lines only before the first command.
+        let first_command = s.find("\nset -eu").unwrap();
+        assert!(s.rfind("#SBATCH").unwrap() < first_command);
+    }
+
+    #[test]
+    fn prepare_script_fits_once() {
+        let s = slurm_prepare_script(&job(), &[]);
+        assert!(s.contains("#SBATCH --job-name=duck-diffusion-preview-prepare\n"));
+        assert!(s.contains(
+            "exec '/opt/nephele/bin/nephele' 'prepare' '/farm/scenes/duck diffusion.ron' '--output' '/farm/renders/duck' '--preview'\n"
+        ));
+    }
+
+    #[test]
+    fn indexed_job_reads_the_completion_index() {
+        let pod = K8sPod {
+            image: "registry/nephele:0.1".into(),
+            volume_claim: "renders".into(),
+            mount: k8s_mount(&job()).unwrap(),
+        };
+        let s = k8s_indexed_job(&job(), &pod);
+        assert!(s.contains("completionMode: Indexed\n  completions: 4\n"));
+        assert!(s.contains("\"--task\", \"auto/4\""));
+        assert!(s.contains("mountPath: \"/farm\"\n"));
+        assert!(s.contains("claimName: \"renders\"\n"));
+        assert!(k8s_prepare_job(&job(), &pod).contains("name: duck-diffusion-preview-prepare\n"));
+        let apart = FarmJob {
+            output: "/tmp/out".into(),
+            ..job()
+        };
+        assert_eq!(k8s_mount(&apart), None);
+    }
+
+    #[test]
+    fn quoting_survives_quotes() {
+        assert_eq!(shell_quote("it's"), r"'it'\''s'");
+        assert_eq!(k8s_name("Duck_Diffusion.v2"), "duck-diffusion-v2");
+        assert_eq!(sbatch_path(Path::new("/a b/c")), "\"/a b/c\"");
+        assert_eq!(sbatch_path(Path::new("/a/c")), "/a/c");
+    }
+}

@@ -1,0 +1,240 @@
+//! Farm rendering without a scheduler (issue 15): `render --task I/N` and `auto/N` render
+//! disjoint chunks whose union is byte-identical to one whole render; tasks racing on a missing
+//! target cache both succeed with the same fit; `farm` writes job files for N tasks. The real
+//! Slurm run is tests/slurm.sh.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use nephele::scene::chunk::ARRAY_INDEX_VARS;
+
+/// nephele with no job-array index variable inherited from the environment.
+fn bin(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_nephele"));
+    c.current_dir(dir);
+    for v in ARRAY_INDEX_VARS {
+        c.env_remove(v);
+    }
+    c
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn ok(o: Output) -> String {
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    t
+}
+
+/// A folder with `shot.ron`: a tiny 10-frame shot of a coarse sphere fit.
+fn shot_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nephele-farm-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("shot.ron"),
+        "Scene(target: Fit(mesh: \"builtin:sphere\", blobs: 12, candidates: 200, samples: 4000), \
+         shot: (width: 64, height: 36, fps: 10, seconds: 1.0), output: (formats: [Exr, Png]))",
+    )
+    .unwrap();
+    dir
+}
+
+/// Sorted names of the files in `dir` (not folders).
+fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_type().unwrap().is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn frame_files(dir: &Path) -> Vec<String> {
+    files(dir)
+        .into_iter()
+        .filter(|n| n.starts_with("shot_"))
+        .collect()
+}
+
+fn same_bytes(a: &Path, b: &Path) {
+    assert_eq!(frame_files(a), frame_files(b));
+    for name in frame_files(a) {
+        assert!(
+            std::fs::read(a.join(&name)).unwrap() == std::fs::read(b.join(&name)).unwrap(),
+            "{name} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+#[test]
+fn task_chunks_cover_the_shot_once_and_equal_a_whole_render() {
+    let dir = shot_dir("chunks");
+    ok(bin(&dir)
+        .args(["render", "shot.ron", "--output", "whole"])
+        .output()
+        .unwrap());
+    ok(bin(&dir)
+        .args(["prepare", "shot.ron", "--output", "tasks"])
+        .output()
+        .unwrap());
+    // 10 frames in 4 tasks: 3, 3, 2, 2 frames.
+    let expected = ["1..3", "4..6", "7..8", "9..10"];
+    let mut seen = 0;
+    for (i, frames) in expected.iter().enumerate() {
+        let t = ok(bin(&dir)
+            .args(["render", "shot.ron", "--output", "tasks"])
+            .args(["--task", &format!("{i}/4")])
+            .output()
+            .unwrap());
+        assert!(
+            t.contains(&format!("task {i}/4: frames {frames} of 1..10")),
+            "{t}"
+        );
+        let now = frame_files(&dir.join("tasks")).len();
+        assert!(now > seen, "task {i} wrote nothing");
+        seen = now;
+    }
+    same_bytes(&dir.join("whole"), &dir.join("tasks"));
+    assert_eq!(frame_files(&dir.join("tasks")).len(), 20);
+    // A chunk of a --frames range.
+    let t = ok(bin(&dir)
+        .args(["render", "shot.ron", "--output", "tasks"])
+        .args(["--frames", "3..9", "--task", "2/3"])
+        .output()
+        .unwrap());
+    assert!(t.contains("task 2/3: frames 8..9 of 3..9"), "{t}");
+    assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn auto_reads_each_array_engines_index_variable() {
+    let dir = shot_dir("auto");
+    for (k, var) in ARRAY_INDEX_VARS.iter().enumerate() {
+        let out = format!("out{k}");
+        let t = ok(bin(&dir)
+            .args(["render", "shot.ron", "--output", &out, "--task", "auto/5"])
+            .env(var, "3")
+            .output()
+            .unwrap());
+        assert!(t.contains("task 3/5: frames 7..8 of 1..10"), "{var}: {t}");
+        assert_eq!(
+            frame_files(&dir.join(&out)),
+            [
+                "shot_0007.exr",
+                "shot_0007.png",
+                "shot_0008.exr",
+                "shot_0008.png"
+            ],
+            "{var}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn tasks_racing_on_a_missing_cache_fit_the_same_target() {
+    let dir = shot_dir("race");
+    ok(bin(&dir)
+        .args(["prepare", "shot.ron", "--output", "ref"])
+        .output()
+        .unwrap());
+    // Two tasks start at once without `prepare`: both fit, both rename their copy into place.
+    let children: Vec<_> = (0..2)
+        .map(|i| {
+            bin(&dir)
+                .args(["render", "shot.ron", "--output", "race"])
+                .args(["--frames", "1..2", "--task", &format!("{i}/2")])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for c in children {
+        ok(c.wait_with_output().unwrap());
+    }
+    let names = files(&dir.join("race"));
+    let caches: Vec<&String> = names.iter().filter(|n| n.starts_with("target-")).collect();
+    assert_eq!(caches.len(), 1, "{names:?}");
+    assert!(
+        !names.iter().any(|n| n.ends_with(".tmp")),
+        "temporary file left: {names:?}"
+    );
+    assert_eq!(
+        std::fs::read(dir.join("race").join(caches[0])).unwrap(),
+        std::fs::read(dir.join("ref").join(caches[0])).unwrap(),
+        "the racing fits differ from the prepared one"
+    );
+    assert_eq!(frame_files(&dir.join("race")).len(), 4);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
+    let dir = shot_dir("jobs");
+    let t = ok(bin(&dir)
+        .args(["farm", "shot.ron", "--engine", "slurm", "--chunk", "3"])
+        .args(["--output", "out", "--sbatch-arg=--partition=render"])
+        .args(["--nephele", "/opt/bin/nephele"])
+        .output()
+        .unwrap());
+    assert!(
+        t.starts_with("4 tasks of at most 3 frames (frames 1..10)"),
+        "{t}"
+    );
+    let out = dir.join("out");
+    let array = std::fs::read_to_string(out.join("shot.sbatch")).unwrap();
+    assert!(array.contains("#SBATCH --array=0-3\n"), "{array}");
+    assert!(array.contains("#SBATCH --partition=render\n"), "{array}");
+    assert!(
+        array.contains("'--task' \"${SLURM_ARRAY_TASK_ID}/4\""),
+        "{array}"
+    );
+    assert!(
+        array.contains("exec '/opt/bin/nephele' 'render' '/"),
+        "{array}"
+    );
+    let prepare = std::fs::read_to_string(out.join("shot.prepare.sbatch")).unwrap();
+    assert!(prepare.contains("'prepare'"), "{prepare}");
+    assert!(out.join("logs").is_dir());
+    // The default program is this very binary, by absolute path.
+    ok(bin(&dir)
+        .args(["farm", "shot.ron", "--engine", "slurm", "--output", "out2"])
+        .output()
+        .unwrap());
+    let array = std::fs::read_to_string(dir.join("out2/shot.sbatch")).unwrap();
+    let exe = std::fs::canonicalize(env!("CARGO_BIN_EXE_nephele")).unwrap();
+    assert!(
+        array.contains(&format!("exec '{}' ", exe.display())),
+        "{array}"
+    );
+    assert!(array.contains("#SBATCH --array=0-0\n"), "{array}");
+    // Kubernetes: an Indexed Job whose pods read JOB_COMPLETION_INDEX.
+    ok(bin(&dir)
+        .args(["farm", "shot.ron", "--engine", "k8s", "--chunk", "5"])
+        .args(["--output", "out3", "--preview"])
+        .output()
+        .unwrap());
+    let job = std::fs::read_to_string(dir.join("out3/preview/shot.k8s.yaml")).unwrap();
+    assert!(
+        job.contains("completionMode: Indexed\n  completions: 2\n"),
+        "{job}"
+    );
+    assert!(
+        job.contains("\"--task\", \"auto/2\", \"--preview\""),
+        "{job}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
