@@ -68,14 +68,14 @@ pub struct FullConfig {
     pub budget_rounds: usize,
     /// Sweeps after each adaptive-budget round.
     pub budget_sweeps: usize,
-    /// Sweeps over every blob after the adaptive budget. 6 (under `final_shape_prior`): mean
-    /// −10 % at 100 blobs and −5 to −10 % at 300 on the bunny, horse and armadillo against 2.
+    /// Sweeps over every blob after the adaptive budget. 6 against 2: mean −3 to −5 % at 100
+    /// blobs on the bunny, horse and armadillo; with `final_shape_prior`, −6 to −11 % at 300.
     pub final_sweeps: usize,
     /// The shape prior of the final sweeps (a continuation: the blobs settle under
     /// `shape_prior`, then refine under this weaker one). 0.0005 throughout let blob tails
     /// overshoot armadillo's extremities (max 1.5 → 1.9 % of D at 100 blobs); 0.0007 in the
-    /// final sweeps only lowered the mean 2–6 % at 100 blobs on the bunny, horse and armadillo
-    /// with the max unchanged within 0.07 % of D.
+    /// final sweeps only lowered the mean 2–7 % at 100 blobs on the bunny, horse and armadillo,
+    /// the max moving by −0.15 to +0.11 % of D.
     pub final_shape_prior: f64,
     /// The adaptive budget adds blobs only where the model falls shorter than this. Shallower
     /// gaps are the optimiser's job: blobs added there measured worse (they bulge out
@@ -85,8 +85,8 @@ pub struct FullConfig {
     /// models of at most [`FullConfig::reserve_up_to`] blobs: the greedy coverage order spends
     /// its last picks on volume, the budget on where the surface falls short (where it finds
     /// no shortfall deep enough, the model keeps fewer blobs). 0.2 at 100 blobs: mean −5 % on
-    /// the bunny, max −15 % on the armadillo (with the final sweeps below, whose weak prior
-    /// alone lets armadillo's max pass 1.5 % of D).
+    /// the bunny (its max 0.84 → 0.95 % of D), armadillo's max 1.58 → 1.34 % of D (with the
+    /// final sweeps below, whose weaker prior alone lets it pass 1.5 %).
     pub budget_reserve: f64,
     /// The largest model that holds back [`FullConfig::budget_reserve`]. At 300 blobs the
     /// budget finds few shortfalls deep enough: held back, the bunny and horse ended with
