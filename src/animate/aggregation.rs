@@ -15,6 +15,11 @@
 //!    the box size, fading to zero toward the target), scales its semi-axes by up to
 //!    `± size_jitter`, tilts it by up to `rotation_jitter_deg`, then runs `repulsion_steps` of
 //!    pairwise repulsion so blobs do not overlap too much.
+//!    With `early_shape: Ellipsoids` each blob flies with `B = (1+A)/A` (alone it fills its
+//!    ellipsoid), blending to the fitted value over the last interval. Finally every cluster
+//!    is made one piece: a shown blob that the cluster's field does not join to the cluster's
+//!    largest shown blob is pulled toward its nearest joined neighbour just far enough
+//!    ([`super::pieces`]).
 //! 4. **Frames.** Centres follow a Catmull–Rom spline through the keyframes (with linearly
 //!    extrapolated end points, so a cluster's own motion is exactly constant-speed, the paper's
 //!    rule, while the per-blob jitter moves smoothly); semi-axes, A and B are interpolated
@@ -26,6 +31,8 @@ use glam::{DQuat, DVec3};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
+use super::diffusion::EarlyShape;
+use super::pieces::keep_in_one_piece;
 use super::repulsion::{NO_CLUSTER, repel};
 use super::{AnimateError, Timeline, blend_shape, blob_bounds, invalid};
 use crate::blobby::Blob;
@@ -116,6 +123,10 @@ pub struct AggregationConfig {
     pub easing: Easing,
     /// Seconds the finished target holds still at the end of the shot.
     pub hold_seconds: f64,
+    /// How the blobs look in flight: `Fitted` (the default) or `Ellipsoids` (each at its
+    /// ellipsoid's extent, blending to the fitted parameters over the last keyframe interval;
+    /// much fuller pieces, as all blobs at that strength overlap heavily).
+    pub early_shape: EarlyShape,
 }
 
 impl Default for AggregationConfig {
@@ -132,6 +143,7 @@ impl Default for AggregationConfig {
             repulsion: 0.7,
             easing: Easing::Linear,
             hold_seconds: 0.5,
+            early_shape: EarlyShape::Fitted,
         }
     }
 }
@@ -214,10 +226,11 @@ pub struct AggregationPlan {
 }
 
 impl AggregationPlan {
-    /// Plan the scheme for `target` (config already validated).
+    /// Plan the scheme for `target` with iso-level `threshold` (config already validated).
     pub fn new(
         cfg: &AggregationConfig,
         target: &[Blob],
+        threshold: f64,
         timeline: Timeline,
         seed: u64,
     ) -> AggregationPlan {
@@ -264,6 +277,17 @@ impl AggregationPlan {
                     })
                     .collect();
                 repel(key, &owner, &boxes, cfg.repulsion, cfg.repulsion_steps);
+            }
+            if cfg.early_shape == EarlyShape::Ellipsoids {
+                for (i, blob) in key.iter_mut().enumerate() {
+                    if owner[i] != NO_CLUSTER && blob.is_live() {
+                        blob.b = (1.0 + blob.a) / blob.a;
+                    }
+                }
+            }
+            // Whatever jitter and repulsion did, every cluster flies as one piece.
+            for c in &clusters {
+                keep_in_one_piece(key, &c.members, threshold);
             }
         }
         AggregationPlan {

@@ -2,27 +2,98 @@
 //!
 //! - **Categories** (in the model's selection order, live blobs only): I = the first blob (the
 //!   largest), II = the next `category_ii` fraction of the live blobs (rounded, at least one
-//!   when there are ≥ 2), III = the rest. Dead blobs (`B = 0`) stay hidden throughout.
+//!   when there are ≥ 2), III = the rest ("the details of the model"). Dead blobs (`B = 0`)
+//!   stay hidden throughout.
+//! - **Early shape.** A fitted blob's `A`, `B` were fitted to act in the sum of all blobs; many
+//!   are below the iso-level alone, so categories I and II at their fitted parameters show a
+//!   few separate eggs, not the rough shape. With `early_shape: Ellipsoids` (the default) each
+//!   blob of I and II is shown at the extent of its ellipsoid (`B = (1+A)/A`: an isolated
+//!   blob's surface is then exactly its ellipsoid; the model file keeps the decomposition's
+//!   ellipsoid as the blob's `ρ = 1` ellipsoid, which the full optimiser only nudges), so the
+//!   partial cloud is the union of those ellipsoids, blended. While category III grows in,
+//!   every I/II blob blends to its fitted parameters (`B²` linearly, so the field is a convex
+//!   combination of the early field and the fitted one). `early_shape: Fitted` keeps the
+//!   fitted parameters throughout (the paper's literal reading).
 //! - **Order.** Blob I is shown first. Then, repeatedly, the next blob of category II is the
 //!   remaining one whose centre has the smallest signed distance to the surface of the blobs
-//!   shown so far (negative inside). The distance is estimated as `−F/|∇F|` of the visible
-//!   blobs' field, clamped to `±D` (`D` = target diagonal); a centre outside every visible
-//!   support gets `D + (distance to the nearest visible centre)`, so nearer blobs come first.
-//!   Ties go to the lower index. Category III keeps its selection order.
-//! - **Schedule.** Blob I is visible at full size from the first frame. The blobs of II start
-//!   at evenly spaced times, each growing over `grow_seconds`; all of III start together and
-//!   grow over `final_grow_seconds`, finishing when the motion ends. Both durations shrink if
-//!   the shot is too short to fit them (each at most a third of the motion).
-//! - **Growth.** A new blob starts at the centre of the nearest blob (by centre distance) shown
-//!   before it, at zero size, and moves to its place while its semi-axes grow to full size
-//!   (smoothstep in time); A, B and the rotation are the target's. Before it starts, a blob is
-//!   hidden (`B = 0`). The visible count never decreases.
+//!   shown so far (as displayed, negative inside) among those that join the shown cloud (the
+//!   segment from its centre to its nearest shown blob's centre lies inside the cloud with it
+//!   added; early shape `Ellipsoids` only). The distance is estimated as `−F/|∇F|` of the
+//!   visible blobs' field, clamped to `±D` (`D` = target diagonal); a centre outside every
+//!   visible support gets `D + (distance to the nearest visible centre)`, so nearer blobs come
+//!   first. Ties go to the lower index. II blobs that never join are deferred to III. Category
+//!   III is ordered greedily by the distance of its centre to the nearest blob placed before.
+//! - **Schedule.** Blob I is on screen from the first frame at `SEED_SIZE` of its size and
+//!   grows, its volume rising evenly. Category II grows during the first part of the motion,
+//!   paced by volume: blob `k` finishes growing when the first part is as far through as the
+//!   early shape's volume (measured at plan time on a 2 % lattice), and starts at the previous
+//!   blob's finish or `grow_seconds` before its own, whichever is earlier. The final part
+//!   brings category III; its length is the motion's share of the volume III adds (the early
+//!   shape's share counted within [0.2, 0.8]), at least `final_grow_seconds`; with
+//!   `Progressive`, at least half the motion. `Together` grows all of III at once over the
+//!   final part as the blend progresses, as the paper says ("finally added together"); the
+//!   blend's progress is paced by its volume, sampled at plan time, so that the volume rises
+//!   evenly. `Progressive` starts III's blobs at evenly spaced times over it, each growing
+//!   over `grow_seconds`.
+//! - **Growth.** A new blob starts at the centre of its parent — the nearest blob placed
+//!   before it (nearest in that blob's ellipsoidal radius, so a long blob's far end counts as
+//!   near) — at zero size, and moves out while its semi-axes grow to full size (smoothstep);
+//!   its offset from its parent's *current* centre grows with its size, so a chain of III
+//!   blobs (a leg) grows out as a scaled copy of itself about its root. A III blob's `B²`
+//!   rises from zero with the blend, so it adds to the field gently. Before it starts, a blob
+//!   is hidden (`B = 0`). The visible count never decreases.
+//!
+//! Where the early cloud would hold more than 90 % of the final volume (it is fuller than the
+//! target in places and would have to shrink into it), its blobs are weakened to
+//! `B = γ·(1+A)/A`, `γ` stepping down by 0.05 to at least 0.8.
+//!
+//! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
+//! every frame, at most a third of the final volume added per second; the volume dips while
+//! the early cloud blends into the fitted one (up to 12 % of the final for the duck, 13 % for
+//! the horse).
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::{AnimateError, Timeline, blob_bounds, invalid, smoothstep};
+use super::pieces::{nearest_blob, segment_inside};
+use super::stats::{Lattice, visible_volume};
+use super::{AnimateError, Timeline, blob_bounds, invalid, lerp, smoothstep};
 use crate::blobby::{Blob, BlobField};
+
+/// Size of blob I on the first frame, relative to its full size ("one small piece").
+const SEED_SIZE: f64 = 0.35;
+
+/// Most of the final volume the early cloud (I and II as shown) may hold before its strength is
+/// lowered.
+const EARLY_SHARE_MAX: f64 = 0.9;
+
+/// Samples of the blend's volume taken at plan time (for its pace).
+const BLEND_SAMPLES: usize = 8;
+
+/// Share of the final span in which category III grows to full size (`Together`); its `B²`
+/// keeps rising with the blend over the whole span.
+const DETAIL_GROWTH_SHARE: f64 = 0.7;
+
+/// How categories I and II look before category III arrives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum EarlyShape {
+    /// Each blob at the extent of its ellipsoid (`B = (1+A)/A`), blending to the fitted
+    /// parameters while category III grows in.
+    #[default]
+    Ellipsoids,
+    /// The fitted parameters throughout.
+    Fitted,
+}
+
+/// How category III arrives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DetailArrival {
+    /// All of category III grows at once at the end (the paper).
+    #[default]
+    Together,
+    /// One after another, nearest to the visible cloud first.
+    Progressive,
+}
 
 /// Settings of the diffusion scheme. Every field has a default.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -30,12 +101,16 @@ use crate::blobby::{Blob, BlobField};
 pub struct DiffusionConfig {
     /// Seconds each category-II blob takes to move out and grow to full size.
     pub grow_seconds: f64,
-    /// Seconds category III takes to grow in, all together, at the end.
+    /// Seconds category III takes to grow in at the end.
     pub final_grow_seconds: f64,
     /// Fraction of all blobs in category II (after the first blob), in `[0, 1]`.
     pub category_ii: f64,
     /// Seconds the finished target holds still at the end of the shot.
     pub hold_seconds: f64,
+    /// How categories I and II look before category III arrives.
+    pub early_shape: EarlyShape,
+    /// How category III arrives.
+    pub category_iii: DetailArrival,
 }
 
 impl Default for DiffusionConfig {
@@ -45,6 +120,8 @@ impl Default for DiffusionConfig {
             final_grow_seconds: 1.0,
             category_ii: 0.10,
             hold_seconds: 0.5,
+            early_shape: EarlyShape::Ellipsoids,
+            category_iii: DetailArrival::Together,
         }
     }
 }
@@ -78,12 +155,28 @@ impl DiffusionConfig {
 #[derive(Clone, Debug)]
 pub struct DiffusionPlan {
     target: Vec<Blob>,
+    /// `B` of each blob before category III arrives (the early shape).
+    early_b: Vec<f64>,
     order: Vec<usize>,
     category_ii: usize,
-    /// Per blob (by index): where it starts, when it starts and how long it grows (seconds).
-    origin: Vec<DVec3>,
+    /// Per blob (by index): category III?
+    detail: Vec<bool>,
+    /// Per blob (by index): the blob it grows out of, when it starts and how long it grows
+    /// (seconds).
+    parent: Vec<Option<usize>>,
     start: Vec<f64>,
     grow: Vec<f64>,
+    /// When category III starts arriving and the early shape blends to the fitted one.
+    blend_start: f64,
+    blend_seconds: f64,
+    /// `(eased time, progress)` knots of the blend, so the volume rises evenly (empty: the
+    /// identity).
+    pace_knots: Vec<(f64, f64)>,
+    /// Category III arrives together (its growth follows the blend progress).
+    together: bool,
+    /// Volume of categories I and II as shown, over the final volume (2 % lattice; NaN when
+    /// not measured).
+    early_share: f64,
     timeline: Timeline,
 }
 
@@ -95,51 +188,133 @@ impl DiffusionPlan {
         threshold: f64,
         timeline: Timeline,
     ) -> DiffusionPlan {
+        let strength = match cfg.early_shape {
+            EarlyShape::Ellipsoids => 1.0,
+            EarlyShape::Fitted => 0.0,
+        };
+        let mut plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, strength);
+        // Where the early cloud would be fuller than the target, it would have to shrink into
+        // it: weaken it (γ down to 0.8) until it holds at most 90 % of the final volume.
+        let mut gamma = strength;
+        while strength > 0.0 && plan.early_share > EARLY_SHARE_MAX && gamma > 0.8 + 1e-9 {
+            gamma -= 0.05;
+            plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, gamma);
+        }
+        if plan.together {
+            plan.pace_knots = pace_knots(&plan.blend_volumes(threshold));
+        }
+        plan
+    }
+
+    /// Visible volume (cells of a 2 % lattice) at evenly spaced blend progresses, at the
+    /// blend's end time.
+    fn blend_volumes(&self, threshold: f64) -> Vec<f64> {
+        let lattice = Lattice::for_target(&blob_bounds(&self.target), 0.02);
+        let t = self.blend_start + self.blend_seconds;
+        (0..=BLEND_SAMPLES)
+            .map(|j| {
+                let w = j as f64 / BLEND_SAMPLES as f64;
+                visible_volume(&self.frame_with(t, w), threshold, lattice).voxels as f64
+            })
+            .collect()
+    }
+
+    /// [`DiffusionPlan::new`] with the early blobs' strength `γ` (`B = γ·(1+A)/A`; 0: the
+    /// fitted `B`), before pacing the blend.
+    fn with_strength(
+        cfg: &DiffusionConfig,
+        target: &[Blob],
+        threshold: f64,
+        timeline: Timeline,
+        strength: f64,
+    ) -> DiffusionPlan {
         let n = target.len();
         let n_live = target.iter().filter(|b| b.is_live()).count();
         let n_ii = category_ii_count(n_live, cfg.category_ii);
-        let order = display_order(target, threshold, n_ii);
-        // Start points: the nearest blob shown earlier (III: the nearest of I and II).
-        let mut origin = vec![DVec3::ZERO; n];
-        for (pos, &i) in order.iter().enumerate() {
-            let earlier = &order[..pos.min(1 + n_ii)];
-            origin[i] = earlier
-                .iter()
-                .map(|&j| target[j].center)
-                .min_by(|a, b| {
-                    a.distance_squared(target[i].center)
-                        .total_cmp(&b.distance_squared(target[i].center))
-                })
-                .unwrap_or(target[i].center);
+        let early = early_shape(target, strength);
+        let early_b: Vec<f64> = early.iter().map(|b| b.b).collect();
+        let connected = strength > 0.0;
+        let (mut order, n_ii) = display_order(&early, threshold, n_ii, connected);
+        // III nearest-first from the cloud of I and II: each III blob then has a parent nearer
+        // the cloud than itself, so III grows out as chains, not as lone blobs.
+        order_by_nearest(target, &mut order, 1 + n_ii);
+        let mut detail = vec![false; n];
+        for &i in order.iter().skip(1 + n_ii) {
+            detail[i] = true;
         }
-        // Schedule: II evenly spaced, III together at the end.
+        // Parents: the nearest blob placed before (by its ellipsoidal radius).
+        let mut parent = vec![None; n];
+        for (pos, &i) in order.iter().enumerate() {
+            parent[i] = nearest_blob(target, &order[..pos], target[i].center);
+        }
+        // Schedule: II paced by volume, III at the end.
         let motion = timeline.motion_seconds();
         let g2 = cfg.grow_seconds.min(motion / 3.0);
-        let g3 = cfg.final_grow_seconds.min(motion / 3.0);
-        let iii_start = motion - g3;
+        let (finish, early_voxels) =
+            volume_paced_finish(&early, threshold, &order[..(1 + n_ii).min(order.len())]);
+        let mut early_share = f64::NAN;
+        let g3 = match cfg.category_iii {
+            DetailArrival::Together => {
+                // The motion is split in proportion to the volume each part adds (the early
+                // shape's share of the final volume, counted within [0.2, 0.8]), so both parts
+                // grow at about the same rate; at least `final_grow_seconds`.
+                let lattice = Lattice::for_target(&blob_bounds(&early), 0.02);
+                let final_voxels = visible_volume(target, threshold, lattice).voxels.max(1);
+                early_share = early_voxels as f64 / final_voxels as f64;
+                let share = early_share.clamp(0.2, 0.8);
+                cfg.final_grow_seconds
+                    .max(motion * (1.0 - share))
+                    .min(motion)
+            }
+            DetailArrival::Progressive => cfg.final_grow_seconds.max(motion / 2.0).min(motion),
+        };
+        let blend_start = motion - g3;
         let mut start = vec![0.0; n];
         let mut grow = vec![0.0; n];
-        let ii_window = (iii_start - g2).max(0.0);
+        if let Some(&first) = order.first() {
+            // Blob I is on screen from the first frame, small, and grows first.
+            start[first] = 0.0;
+            grow[first] = blend_start * finish[0];
+        }
         for (k, &i) in order.iter().enumerate().skip(1) {
             if k <= n_ii {
-                start[i] = if n_ii > 1 {
-                    ii_window * (k - 1) as f64 / (n_ii - 1) as f64
-                } else {
-                    0.0
-                };
-                grow[i] = g2;
+                // From the previous blob's finish (or `grow_seconds` before its own, if
+                // earlier), so the volume keeps rising between finishes.
+                let end = blend_start * finish[k];
+                start[i] = (end - g2).min(blend_start * finish[k - 1]).max(0.0);
+                grow[i] = end - start[i];
             } else {
-                start[i] = iii_start;
-                grow[i] = g3;
+                match cfg.category_iii {
+                    DetailArrival::Together => {
+                        // Full size within the first part of the blend, so that from then on
+                        // the field is the convex blend of the early field and the fitted one.
+                        start[i] = blend_start;
+                        grow[i] = DETAIL_GROWTH_SHARE * g3;
+                    }
+                    DetailArrival::Progressive => {
+                        let n_iii = order.len() - 1 - n_ii;
+                        let g = g2.min(g3);
+                        let slot = (k - 1 - n_ii) as f64 / n_iii.max(1) as f64;
+                        start[i] = blend_start + (g3 - g) * slot;
+                        grow[i] = g;
+                    }
+                }
             }
         }
         DiffusionPlan {
             target: target.to_vec(),
+            early_b,
             order,
             category_ii: n_ii,
-            origin,
+            detail,
+            parent,
             start,
             grow,
+            blend_start,
+            blend_seconds: g3,
+            pace_knots: Vec::new(),
+            early_share,
+            together: cfg.category_iii == DetailArrival::Together,
             timeline,
         }
     }
@@ -164,34 +339,205 @@ impl DiffusionPlan {
         if self.timeline.progress(k) >= 1.0 {
             return self.target.clone();
         }
-        let t = self.timeline.time(k);
-        let first = self.order.first().copied();
-        self.target
-            .iter()
-            .enumerate()
-            .map(|(i, blob)| {
-                if Some(i) == first || !blob.is_live() {
-                    return *blob;
-                }
-                let (s, g) = (self.start[i], self.grow[i]);
-                if t <= s {
-                    return Blob {
-                        center: self.origin[i],
-                        b: 0.0,
-                        ..*blob
-                    };
-                }
-                if g <= 0.0 || t >= s + g {
-                    return *blob;
-                }
-                let e = smoothstep((t - s) / g);
-                Blob {
-                    center: self.origin[i].lerp(blob.center, e),
-                    semi_axes: blob.semi_axes * e,
+        self.frame_at(self.timeline.time(k))
+    }
+
+    /// The blobs at `t` seconds into the motion.
+    fn frame_at(&self, t: f64) -> Vec<Blob> {
+        // Progress of the blend: eased time (half linear, half smoothstep: a peak rate 1.25×
+        // the mean), mapped through the volume pace.
+        let u = if self.blend_seconds > 0.0 {
+            ((t - self.blend_start) / self.blend_seconds).clamp(0.0, 1.0)
+        } else if t >= self.blend_start {
+            1.0
+        } else {
+            0.0
+        };
+        self.frame_with(t, self.pace(lerp(u, smoothstep(u), 0.5)))
+    }
+
+    /// Blend progress at eased blend time `u ∈ [0, 1]`: piecewise linear through the knots.
+    fn pace(&self, u: f64) -> f64 {
+        let k = &self.pace_knots;
+        if k.len() < 2 || u <= 0.0 {
+            return u.clamp(0.0, 1.0);
+        }
+        let seg = k
+            .windows(2)
+            .position(|w| u <= w[1].0)
+            .unwrap_or(k.len() - 2);
+        let ((u0, p0), (u1, p1)) = (k[seg], k[seg + 1]);
+        if u1 <= u0 {
+            return p1;
+        }
+        lerp(p0, p1, ((u - u0) / (u1 - u0)).clamp(0.0, 1.0))
+    }
+
+    /// The blobs at `t` seconds with blend progress `w` (the fitted parameters' weight; it
+    /// also drives category III's growth when it arrives `Together`).
+    fn frame_with(&self, t: f64, w: f64) -> Vec<Blob> {
+        let mut out = self.target.clone();
+        // In display order, so a parent's current centre is known before its children's.
+        for &i in &self.order {
+            let blob = &self.target[i];
+            let (s, g) = (self.start[i], self.grow[i]);
+            let first = self.order.first() == Some(&i);
+            let from = self.parent[i].map_or(blob.center, |p| out[p].center);
+            let home = self.parent[i].map_or(DVec3::ZERO, |p| self.target[p].center);
+            if !first && (t < s || (t == s && g > 0.0)) {
+                out[i] = Blob {
+                    center: from,
+                    b: 0.0,
                     ..*blob
+                };
+                continue;
+            }
+            let mut e = if self.detail[i] && self.together {
+                smoothstep(w / DETAIL_GROWTH_SHARE)
+            } else if g <= 0.0 {
+                1.0
+            } else {
+                smoothstep((t - s) / g)
+            };
+            if first {
+                // Volume (∝ size³) rising evenly from the seed's.
+                let u = if g <= 0.0 {
+                    1.0
+                } else {
+                    ((t - s) / g).clamp(0.0, 1.0)
+                };
+                e = lerp(SEED_SIZE.powi(3), 1.0, u).cbrt();
+            }
+            let b = if self.detail[i] {
+                // III adds to the field gently: B² rises with the blend.
+                blob.b * w.sqrt()
+            } else {
+                lerp(self.early_b[i].powi(2), blob.b.powi(2), w).sqrt()
+            };
+            // The offset from the parent grows with the size: a chain of growing blobs is a
+            // scaled copy of its final shape about its root.
+            let center = if self.parent[i].is_some() {
+                from + (blob.center - home) * e
+            } else {
+                blob.center
+            };
+            out[i] = Blob {
+                center,
+                semi_axes: blob.semi_axes * e,
+                b,
+                ..*blob
+            };
+        }
+        out
+    }
+}
+
+/// Knots `(eased time, progress)` through which the blend's volume, sampled at evenly spaced
+/// progresses (`volumes`, made non-decreasing by a running maximum), rises evenly in time.
+/// Empty (the identity) when the volume does not grow.
+fn pace_knots(volumes: &[f64]) -> Vec<(f64, f64)> {
+    let n = volumes.len();
+    if n < 2 {
+        return Vec::new();
+    }
+    let mut v = volumes.to_vec();
+    for k in 1..n {
+        v[k] = v[k].max(v[k - 1]);
+    }
+    let (v0, v1) = (v[0], v[n - 1]);
+    if v1 <= v0 {
+        return Vec::new();
+    }
+    (0..n)
+        .map(|k| {
+            let p = k as f64 / (n - 1) as f64;
+            // Mostly by volume, a little by progress, so no stretch of the blend is instant.
+            (0.8 * (v[k] - v0) / (v1 - v0) + 0.2 * p, p)
+        })
+        .collect()
+}
+
+/// The blobs with `B = γ·(1+A)/A` (`γ` = `strength`; 1 shows an isolated blob at its
+/// ellipsoid), or the fitted `B` when `strength` is 0. Dead blobs stay dead.
+fn early_shape(target: &[Blob], strength: f64) -> Vec<Blob> {
+    target
+        .iter()
+        .map(|b| {
+            if strength > 0.0 && b.is_live() {
+                Blob {
+                    b: strength * (1.0 + b.a) / b.a,
+                    ..*b
                 }
-            })
-            .collect()
+            } else {
+                *b
+            }
+        })
+        .collect()
+}
+
+/// For the first blobs of `order` (category I then II, as displayed at full size), the
+/// fraction in `(0, 1]` of the early shape's growth done once blob `k` is in: 90 % the visible
+/// volume of blobs `order[..=k]` on a 2 % lattice over that of all of them, 10 % the count
+/// (evenly spaced when nothing is visible); and the cells of all of them.
+fn volume_paced_finish(early: &[Blob], threshold: f64, order: &[usize]) -> (Vec<f64>, usize) {
+    let n = order.len();
+    if n == 0 {
+        return (Vec::new(), 0);
+    }
+    let lattice = Lattice::for_target(&blob_bounds(early), 0.02);
+    let mut shown: Vec<Blob> = early.iter().map(|b| Blob { b: 0.0, ..*b }).collect();
+    let mut volume = Vec::with_capacity(n);
+    for &i in order {
+        shown[i] = early[i];
+        volume.push(visible_volume(&shown, threshold, lattice).voxels as f64);
+    }
+    // Blobs hidden inside others add nothing; keep the curve non-decreasing.
+    for k in 1..n {
+        volume[k] = volume[k].max(volume[k - 1]);
+    }
+    let v1 = volume[n - 1];
+    let finish = (0..n)
+        .map(|k| {
+            let even = (k + 1) as f64 / n as f64;
+            if v1 > 0.0 {
+                // Mostly by volume, a little by count, so no two blobs land on one instant.
+                0.9 * volume[k] / v1 + 0.1 * even
+            } else {
+                even
+            }
+        })
+        .collect();
+    (finish, v1 as usize)
+}
+
+/// Reorder `order[fixed..]` greedily: next is the blob whose centre is nearest (Euclidean) to
+/// the centre of any blob already placed (ties to the earlier one).
+fn order_by_nearest(blobs: &[Blob], order: &mut [usize], fixed: usize) {
+    if fixed == 0 || fixed >= order.len() {
+        return;
+    }
+    // Distance of each remaining blob to the nearest placed centre, updated as blobs are placed.
+    let mut dist: Vec<f64> = order[fixed..]
+        .iter()
+        .map(|&i| {
+            order[..fixed]
+                .iter()
+                .map(|&j| blobs[j].center.distance_squared(blobs[i].center))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    for pos in fixed..order.len() {
+        let r = pos - fixed;
+        let pick = (r..dist.len())
+            .min_by(|&a, &b| dist[a].total_cmp(&dist[b]).then(a.cmp(&b)))
+            .expect("non-empty");
+        order.swap(pos, fixed + pick);
+        dist.swap(r, pick);
+        let placed = blobs[order[pos]].center;
+        for q in r + 1..dist.len() {
+            let d = placed.distance_squared(blobs[order[fixed + q]].center);
+            dist[q] = dist[q].min(d);
+        }
     }
 }
 
@@ -208,34 +554,65 @@ pub fn category_ii_count(n: usize, fraction: f64) -> usize {
 
 /// Display order of the live blobs: the first, then the next `n_ii` (category II) greedily by
 /// signed distance to the visible surface, then the rest (category III) in selection order.
-pub fn display_order(blobs: &[Blob], threshold: f64, n_ii: usize) -> Vec<usize> {
+/// Returns the order and the number of category-II blobs placed: with `connected`, a II blob
+/// is placed only if it joins the visible cloud (the segment from its centre to the centre of
+/// its nearest visible blob lies inside the cloud with it added); the nearest connecting one
+/// goes next, and those that never connect are deferred to the front of category III.
+pub fn display_order(
+    blobs: &[Blob],
+    threshold: f64,
+    n_ii: usize,
+    connected: bool,
+) -> (Vec<usize>, usize) {
     let live: Vec<usize> = (0..blobs.len()).filter(|&i| blobs[i].is_live()).collect();
     let Some((&first, rest)) = live.split_first() else {
-        return Vec::new();
+        return (Vec::new(), 0);
     };
     let n_ii = n_ii.min(rest.len());
     let diag = blob_bounds(blobs).diagonal().max(f64::MIN_POSITIVE);
     let mut order = vec![first];
     let mut remaining: Vec<usize> = rest[..n_ii].to_vec();
+    let mut visible_idx: Vec<usize> = vec![first];
     let mut visible: Vec<Blob> = vec![blobs[first]];
     while !remaining.is_empty() {
         let field = BlobField::new(&visible, threshold);
-        let (pick, _) = remaining
+        let mut ranked: Vec<(usize, f64)> = remaining
             .iter()
             .enumerate()
             .map(|(r, &i)| (r, signed_distance(&field, &visible, blobs[i].center, diag)))
-            .fold(
-                (0, f64::INFINITY),
-                |best, cur| {
-                    if cur.1 < best.1 { cur } else { best }
-                },
-            );
+            .collect();
+        // Stable: ties keep the lower index.
+        ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let pick = ranked
+            .iter()
+            .map(|&(r, _)| r)
+            .find(|&r| !connected || joins(&field, blobs, &visible_idx, &blobs[remaining[r]]));
+        let Some(pick) = pick else {
+            break;
+        };
         let i = remaining.remove(pick);
         order.push(i);
+        visible_idx.push(i);
         visible.push(blobs[i]);
     }
+    let placed = order.len() - 1;
+    order.extend_from_slice(&remaining);
     order.extend_from_slice(&rest[n_ii..]);
-    order
+    (order, placed)
+}
+
+/// True when `blob`, added to the cloud of `field` (blobs `visible`), lies in one piece with
+/// it: the field is at or above the iso-level along the segment from `blob`'s centre to the
+/// centre of its nearest visible blob.
+fn joins(field: &BlobField, blobs: &[Blob], visible: &[usize], blob: &Blob) -> bool {
+    let Some(j) = nearest_blob(blobs, visible, blob.center) else {
+        return true;
+    };
+    segment_inside(
+        |x| field.value(x) + blob.value(x),
+        blob.center,
+        blobs[j].center,
+    )
 }
 
 /// Signed distance estimate from `x` to the surface of `field` (negative inside), see the

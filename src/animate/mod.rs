@@ -1,18 +1,25 @@
-//! Cloud animation schemes (paper §5.2; docs/ARCHITECTURE.md, Animation): aggregation (pieces of cloud gather into
-//! the target) and diffusion (the target spreads from one piece).
+//! Cloud animation schemes (paper §5.2; docs/ARCHITECTURE.md, Animation): aggregation (pieces
+//! of cloud gather into the target), diffusion (the target spreads from one piece) and morph
+//! (one blob model turns into another, e.g. [`cumulus`] into a duck); [`stats`] measures a
+//! frame's visible cloud.
 //!
 //! In: a fitted [`crate::blobby::BlobModel`], the scheme's settings and the shot's [`Timeline`].
 //! Out: a [`Plan`] that gives, per frame, the full blob list (index = blob identity, same length
-//! as the model; hidden blobs have `B = 0`). The last frame equals the model's blobs exactly
-//! (bit-equal), whatever the scheme.
+//! as the model — a morph appends the source blobs that merge away; hidden blobs have `B = 0`).
+//! The last frame equals the model's blobs exactly (bit-equal), whatever the scheme (a morph's
+//! merged blobs follow, hidden).
 //!
 //! Time: frame `k` (0-based) of a shot of `n` frames at `fps` is at `k / fps` seconds. The motion
 //! ends `hold_seconds` before the last frame (the target then sits still); a shot shorter than
 //! its hold shows the target throughout.
 
 pub mod aggregation;
+pub mod cumulus;
 pub mod diffusion;
+pub mod morph;
+pub mod pieces;
 mod repulsion;
+pub mod stats;
 
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -21,7 +28,8 @@ use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
-pub use diffusion::{DiffusionConfig, DiffusionPlan};
+pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
+pub use morph::{MorphConfig, MorphPlan};
 
 /// Errors of the animation stage: settings that cannot produce an animation.
 #[derive(Debug, thiserror::Error)]
@@ -38,6 +46,9 @@ pub enum AnimateError {
     /// The model has no blobs.
     #[error("the target model has no blobs")]
     EmptyModel,
+    /// A morph was planned without its source model.
+    #[error("animation.from: a morph needs its source model")]
+    MissingSource,
 }
 
 /// Build an [`AnimateError::Invalid`].
@@ -56,6 +67,8 @@ pub enum Animation {
     Aggregation(AggregationConfig),
     /// The target grows from its largest blob outward (paper §5.2.2).
     Diffusion(DiffusionConfig),
+    /// One blob model turns into another (metamorphosis).
+    Morph(MorphConfig),
 }
 
 impl Default for Animation {
@@ -70,6 +83,7 @@ impl Animation {
         match self {
             Animation::Aggregation(c) => c.validate(),
             Animation::Diffusion(c) => c.validate(),
+            Animation::Morph(c) => c.validate(),
         }
     }
 
@@ -78,6 +92,7 @@ impl Animation {
         match self {
             Animation::Aggregation(c) => c.hold_seconds,
             Animation::Diffusion(c) => c.hold_seconds,
+            Animation::Morph(c) => c.hold_seconds,
         }
     }
 }
@@ -122,12 +137,26 @@ pub enum Plan {
     Aggregation(AggregationPlan),
     /// Diffusion order and schedule.
     Diffusion(DiffusionPlan),
+    /// Morph pairing and schedule.
+    Morph(MorphPlan),
 }
 
-/// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`.
+/// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`. A
+/// morph needs [`plan_with_source`].
 pub fn plan(
     animation: &Animation,
     model: &BlobModel,
+    timeline: Timeline,
+    seed: u64,
+) -> Result<Plan, AnimateError> {
+    plan_with_source(animation, model, None, timeline, seed)
+}
+
+/// [`plan`] with the morph's source model (ignored by the other schemes).
+pub fn plan_with_source(
+    animation: &Animation,
+    model: &BlobModel,
+    source: Option<&BlobModel>,
     timeline: Timeline,
     seed: u64,
 ) -> Result<Plan, AnimateError> {
@@ -145,15 +174,23 @@ pub fn plan(
         ));
     }
     Ok(match animation {
-        Animation::Aggregation(c) => {
-            Plan::Aggregation(AggregationPlan::new(c, &model.blobs, timeline, seed))
-        }
+        Animation::Aggregation(c) => Plan::Aggregation(AggregationPlan::new(
+            c,
+            &model.blobs,
+            model.threshold,
+            timeline,
+            seed,
+        )),
         Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
             c,
             &model.blobs,
             model.threshold,
             timeline,
         )),
+        Animation::Morph(c) => {
+            let source = source.ok_or(AnimateError::MissingSource)?;
+            Plan::Morph(MorphPlan::new(c, &source.blobs, &model.blobs, timeline))
+        }
     })
 }
 
@@ -163,6 +200,7 @@ impl Plan {
         match self {
             Plan::Aggregation(p) => p.frame(k),
             Plan::Diffusion(p) => p.frame(k),
+            Plan::Morph(p) => p.frame(k),
         }
     }
 
@@ -171,6 +209,7 @@ impl Plan {
         match self {
             Plan::Aggregation(p) => p.timeline(),
             Plan::Diffusion(p) => p.timeline(),
+            Plan::Morph(p) => p.timeline(),
         }
     }
 }

@@ -26,6 +26,10 @@ pub struct Args {
     /// Also write each frame's blobs as <name>_0001.blobs.ron.
     #[arg(long)]
     pub dump_blobs: bool,
+    /// Also write per-frame statistics (visible volume, 3D pieces, screen coverage) to
+    /// <output>/<name>_stats.csv; frames already done are re-rendered in memory for them.
+    #[arg(long)]
+    pub stats: bool,
     /// Print the wall time of each stage at the end.
     #[arg(long)]
     pub timings: bool,
@@ -115,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         preview: args.preview,
         force: args.force,
         dump_blobs: args.dump_blobs,
+        stats: args.stats,
     };
     let mut setup = scene::shot::shot_setup(&scene, &opts)?;
     if let Some(task) = args.task {
@@ -162,6 +167,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.rendered,
         report.skipped
     );
+    if let Some(p) = &report.stats {
+        eprintln!("statistics in {}", p.display());
+    }
     if args.timings {
         eprint!("{}", report.timings.report());
         if report.rendered > 0 {

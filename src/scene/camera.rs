@@ -1,16 +1,127 @@
 //! The scene camera per frame: automatic framing of the target or a fixed camera, with an
-//! optional orbit around the vertical axis over the shot.
+//! optional orbit around the vertical axis over the shot; or keyframes.
+//!
+//! Keyframes (`camera: Keyframes([(time: 0.0, position: …, look_at: …, fov_deg: …), …])`) are
+//! interpolated by a cubic Hermite spline whose tangents are the Catmull–Rom ones for uneven
+//! times (`(p[i+1] − p[i−1]) / (t[i+1] − t[i−1])`, one-sided at the ends): position, look-at
+//! point and field of view pass through every key, smoothly. Before the first key and after
+//! the last the camera holds still. At least two keys, strictly increasing finite times, finite
+//! points, `position ≠ look_at` and a field of view in (0, 180) — or the scene does not parse.
 
 use glam::Vec3;
+use serde::{Deserialize, Serialize};
 
 use super::file::CameraSpec;
 use crate::geometry::Aabb;
 use crate::render::Camera;
 
-/// The camera at shot fraction `u ∈ [0, 1]` (0 = first frame, 1 = last) for an image of the
-/// given `aspect` (width / height), framing `bounds` (the target's box) when automatic.
-pub fn camera_at(spec: &CameraSpec, bounds: &Aabb, aspect: f32, u: f64) -> Camera {
+/// One camera keyframe.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraKey {
+    /// Seconds from the first frame.
+    pub time: f64,
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Vertical field of view, degrees.
+    #[serde(default = "default_fov")]
+    pub fov_deg: f32,
+}
+
+fn default_fov() -> f32 {
+    35.0
+}
+
+/// Checked camera keyframes (see the module doc).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "Vec<CameraKey>")]
+pub struct CameraKeyframes(Vec<CameraKey>);
+
+impl TryFrom<Vec<CameraKey>> for CameraKeyframes {
+    type Error = String;
+
+    fn try_from(keys: Vec<CameraKey>) -> Result<Self, String> {
+        if keys.len() < 2 {
+            return Err(format!(
+                "camera keyframes: need at least two keys, got {}",
+                keys.len()
+            ));
+        }
+        for (i, k) in keys.iter().enumerate() {
+            if !(k.time.is_finite() && k.position.is_finite() && k.look_at.is_finite()) {
+                return Err(format!(
+                    "camera keyframe {i}: time, position and look_at must be finite"
+                ));
+            }
+            if !(k.fov_deg.is_finite() && k.fov_deg > 0.0 && k.fov_deg < 180.0) {
+                return Err(format!(
+                    "camera keyframe {i}: fov_deg must be in (0, 180), got {}",
+                    k.fov_deg
+                ));
+            }
+            if k.position.distance(k.look_at) <= 0.0 {
+                return Err(format!(
+                    "camera keyframe {i}: position and look_at must differ"
+                ));
+            }
+            if i > 0 && k.time <= keys[i - 1].time {
+                return Err(format!(
+                    "camera keyframe {i}: times must increase, got {} after {}",
+                    k.time,
+                    keys[i - 1].time
+                ));
+            }
+        }
+        Ok(CameraKeyframes(keys))
+    }
+}
+
+impl CameraKeyframes {
+    /// The keys, in time order.
+    pub fn keys(&self) -> &[CameraKey] {
+        &self.0
+    }
+
+    /// The camera at `t` seconds.
+    pub fn at(&self, t: f64) -> Camera {
+        let k = &self.0;
+        let n = k.len();
+        let t = t.clamp(k[0].time, k[n - 1].time);
+        let i = k.windows(2).position(|w| t <= w[1].time).unwrap_or(n - 2);
+        let (t0, t1) = (k[i].time, k[i + 1].time);
+        let h = t1 - t0;
+        let s = ((t - t0) / h).clamp(0.0, 1.0) as f32;
+        let tangent = |j: usize, f: &dyn Fn(&CameraKey) -> Vec3| -> Vec3 {
+            let (a, b) = (j.saturating_sub(1), (j + 1).min(n - 1));
+            (f(&k[b]) - f(&k[a])) / (k[b].time - k[a].time) as f32
+        };
+        let hermite = |f: &dyn Fn(&CameraKey) -> Vec3| -> Vec3 {
+            let (s2, s3) = (s * s, s * s * s);
+            let (h00, h10) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s);
+            let (h01, h11) = (-2.0 * s3 + 3.0 * s2, s3 - s2);
+            f(&k[i]) * h00
+                + tangent(i, f) * (h10 * h as f32)
+                + f(&k[i + 1]) * h01
+                + tangent(i + 1, f) * (h11 * h as f32)
+        };
+        let fov = hermite(&|c| Vec3::splat(c.fov_deg)).x.clamp(1.0, 179.0);
+        Camera {
+            position: hermite(&|c| c.position),
+            look_at: hermite(&|c| c.look_at),
+            up: Vec3::Y,
+            fov_deg: fov,
+        }
+    }
+}
+
+/// The camera at shot fraction `u ∈ [0, 1]` (0 = first frame, 1 = last) and time `t` seconds
+/// for an image of the given `aspect` (width / height), framing `bounds` (the target's box)
+/// when automatic.
+pub fn camera_at(spec: &CameraSpec, bounds: &Aabb, aspect: f32, u: f64, t: f64) -> Camera {
     match spec {
+        CameraSpec::Keyframes(k) => k.at(t),
         CameraSpec::Fixed(c) => {
             let eye = orbit(c.position, c.look_at, c.orbit_deg * u as f32);
             Camera {
@@ -65,7 +176,7 @@ mod tests {
             elevation_deg: 0.0,
             ..AutoCamera::default()
         });
-        let cam = camera_at(&spec, &b, 16.0 / 9.0, 0.0);
+        let cam = camera_at(&spec, &b, 16.0 / 9.0, 0.0, 0.0);
         assert!((cam.look_at - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6);
         // From +X, at radius / sin(fov/2).
         let r = 3f32.sqrt();
@@ -82,7 +193,44 @@ mod tests {
             orbit_deg: 180.0,
             ..AutoCamera::default()
         });
-        let cam = camera_at(&spec, &b, 16.0 / 9.0, 1.0);
+        let cam = camera_at(&spec, &b, 16.0 / 9.0, 1.0, 1.0);
         assert!((cam.position - Vec3::new(-d, 1.0, 0.0)).length() < 1e-3);
+    }
+
+    #[test]
+    fn keyframes_pass_through_keys_smoothly() {
+        let key = |time: f64, x: f32, fov: f32| CameraKey {
+            time,
+            position: Vec3::new(x, 1.0, 5.0),
+            look_at: Vec3::ZERO,
+            fov_deg: fov,
+        };
+        let k = CameraKeyframes::try_from(vec![
+            key(0.0, 0.0, 30.0),
+            key(1.0, 2.0, 40.0),
+            key(3.0, 2.0, 40.0),
+        ])
+        .unwrap();
+        for c in k.keys() {
+            let cam = k.at(c.time);
+            assert!((cam.position - c.position).length() < 1e-5);
+            assert!((cam.fov_deg - c.fov_deg).abs() < 1e-4);
+        }
+        // Held before the first and after the last key.
+        assert_eq!(k.at(-1.0).position, k.at(0.0).position);
+        assert_eq!(k.at(9.0).position, k.at(3.0).position);
+        // No jump in velocity at a key: finite differences on both sides agree.
+        let d = 1e-3;
+        let v1 = (k.at(1.0).position - k.at(1.0 - d).position) / d as f32;
+        let v2 = (k.at(1.0 + d).position - k.at(1.0).position) / d as f32;
+        assert!(
+            (v1 - v2).length() < 0.05 * (1.0 + v1.length()),
+            "{v1} vs {v2}"
+        );
+        assert!(CameraKeyframes::try_from(vec![key(0.0, 0.0, 30.0)]).is_err());
+        assert!(CameraKeyframes::try_from(vec![key(1.0, 0.0, 30.0), key(1.0, 1.0, 30.0)]).is_err());
+        assert!(
+            CameraKeyframes::try_from(vec![key(0.0, 0.0, 30.0), key(1.0, f32::NAN, 30.0)]).is_err()
+        );
     }
 }

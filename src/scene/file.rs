@@ -12,6 +12,8 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
+use super::camera::CameraKeyframes;
+use super::transform::TargetTransform;
 use crate::animate::Animation;
 use crate::render::{CloudMaterial, Sky, Sun};
 
@@ -21,6 +23,9 @@ use crate::render::{CloudMaterial, Sky, Sun};
 pub struct SceneFile {
     /// What the cloud becomes (the only required field).
     pub target: Target,
+    /// Orientation, size and place of the target in the shot (default: as fitted).
+    #[serde(default)]
+    pub transform: TargetTransform,
     /// The animation scheme.
     #[serde(default)]
     pub animation: Animation,
@@ -92,14 +97,16 @@ fn default_samples() -> usize {
     crate::pipeline::FitConfig::DEFAULT_SAMPLES
 }
 
-/// The camera: automatic framing of the target, or fixed; optionally orbiting.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum CameraSpec {
     /// Frame the target's bounding sphere from a direction.
     Auto(AutoCamera),
     /// An explicit pinhole camera (world units).
     Fixed(FixedCamera),
+    /// Keyframes in seconds, smoothly interpolated (see [`super::camera`]).
+    Keyframes(CameraKeyframes),
 }
 
 impl Default for CameraSpec {
@@ -350,6 +357,8 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
                 ));
             }
         }
+        // Checked while parsing, with the file position.
+        CameraSpec::Keyframes(_) => {}
     }
     finite("sun.direction", &s.sun.direction.to_array())?;
     finite("sun.color", &s.sun.color.to_array())?;

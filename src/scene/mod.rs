@@ -13,7 +13,9 @@ pub mod camera;
 pub mod chunk;
 pub mod file;
 pub mod shot;
+pub mod stats;
 pub mod target;
+pub mod transform;
 
 use std::path::{Path, PathBuf};
 
@@ -100,6 +102,18 @@ pub enum SceneError {
     },
 }
 
+/// 1-based line and column of the quoted `value` after the first `key` in `text` (or of `key`,
+/// or 1:1, when not found).
+fn locate(text: &str, key: &str, value: &str) -> (usize, usize) {
+    let at = text.find(key).unwrap_or(0);
+    let quoted = format!("\"{value}\"");
+    let pos = text[at..].find(&quoted).map_or(at, |p| at + p);
+    let before = &text[..pos];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
 /// A loaded, validated scene with its paths resolved.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -143,6 +157,28 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
     match &mut file.target {
         Target::Model(p) => *p = resolve(p)?,
         Target::Fit { mesh, .. } => *mesh = resolve(mesh)?,
+    }
+    if let crate::animate::Animation::Morph(m) = &mut file.animation {
+        // A `from` that cannot be read is located at its path in the scene text.
+        let located = |p: &str, e: SceneError| match e {
+            SceneError::MissingTarget { target, .. } => {
+                let (line, column) = locate(text, "from", p);
+                SceneError::Parse {
+                    path: path.to_path_buf(),
+                    line,
+                    column,
+                    message: format!(
+                        "animation.from: {} does not exist (relative paths resolve against the scene file's folder)",
+                        target.display()
+                    ),
+                }
+            }
+            other => other,
+        };
+        match &mut m.from {
+            Target::Model(p) => *p = resolve(p).map_err(|e| located(p, e))?,
+            Target::Fit { mesh, .. } => *mesh = resolve(mesh).map_err(|e| located(mesh, e))?,
+        }
     }
     let stem = path
         .file_stem()

@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::camera::camera_at;
-use super::target::{TargetOrigin, load_target};
+use super::stats::StatsBasis;
+use super::target::{TargetOrigin, load_spec, load_target};
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
@@ -31,6 +32,9 @@ pub struct RenderOptions {
     pub force: bool,
     /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
     pub dump_blobs: bool,
+    /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
+    /// already done are rendered again in memory for their coverage.
+    pub stats: bool,
 }
 
 /// What happened to one frame.
@@ -59,6 +63,8 @@ pub struct ShotReport {
     pub target: Option<TargetOrigin>,
     /// Wall time per stage (target, plan, render, write).
     pub timings: Timings,
+    /// The statistics file, when asked for.
+    pub stats: Option<PathBuf>,
 }
 
 /// The resolved geometry of a shot: folder, frames, image size.
@@ -140,20 +146,31 @@ pub struct Prepared {
     pub bounds: Aabb,
 }
 
-/// Plan the scene's animation for `model`.
-pub fn prepare(scene: &Scene, model: BlobModel) -> Result<Prepared, SceneError> {
+/// Apply the scene's target transform to `model` and plan its animation.
+pub fn prepare(scene: &Scene, mut model: BlobModel) -> Result<Prepared, SceneError> {
+    scene.file.transform.apply(&mut model.blobs);
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,
         fps: shot.fps,
         hold_seconds: scene.file.animation.hold_seconds(),
     };
-    let plan = animate::plan(&scene.file.animation, &model, timeline, scene.file.seed).map_err(
-        |source| SceneError::Animate {
-            scene: scene.path.clone(),
-            source,
-        },
-    )?;
+    // A morph's source: fitted sources are cached in the scene's output folder.
+    let source = match &scene.file.animation {
+        animate::Animation::Morph(m) => Some(load_spec(scene, &m.from, &scene.output_dir)?.0),
+        _ => None,
+    };
+    let plan = animate::plan_with_source(
+        &scene.file.animation,
+        &model,
+        source.as_ref(),
+        timeline,
+        scene.file.seed,
+    )
+    .map_err(|source| SceneError::Animate {
+        scene: scene.path.clone(),
+        source,
+    })?;
     let bounds = blob_bounds(&model.blobs);
     Ok(Prepared {
         model,
@@ -180,7 +197,7 @@ pub fn frame_settings(
     RenderSettings {
         width: setup.width,
         height: setup.height,
-        camera: camera_at(&f.camera, &prep.bounds, aspect, u),
+        camera: camera_at(&f.camera, &prep.bounds, aspect, u, k as f64 / f.shot.fps),
         sun: f.sun,
         sky: f.sky,
         cloud: f.cloud,
@@ -210,20 +227,27 @@ pub fn render_shot(
                 .iter()
                 .all(|p| p.is_file())
     };
-    let todo: Vec<u32> = setup.frames.clone().filter(|&f| !done(f)).collect();
+    let todo: Vec<u32> = setup
+        .frames
+        .clone()
+        .filter(|&f| opts.stats || !done(f))
+        .collect();
     let mut report = ShotReport {
         output_dir: setup.dir.clone(),
         rendered: 0,
         skipped: 0,
         target: None,
         timings: Timings::default(),
+        stats: None,
     };
     if !todo.is_empty() {
         let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
         report.target = Some(origin);
         let prep = timings.stage("plan", || prepare(scene, model))?;
         let voxel = grid_voxel(scene, &prep)?;
-        let (mut render_s, mut write_s) = (0.0, 0.0);
+        let basis = opts.stats.then(|| StatsBasis::new(&prep));
+        let mut stats = Vec::new();
+        let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
         for frame in setup.frames.clone() {
             if !todo.contains(&frame) {
                 report.skipped += 1;
@@ -236,25 +260,43 @@ pub fn render_shot(
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
             let image = render::render_frame(&settings, &blobs, k);
             let rendered = Instant::now();
-            let out = FrameOutput {
-                image: &image,
-                settings: &settings,
-                blobs: &blobs,
-                voxel,
-            };
-            write_frame(scene, &setup.dir, frame, &out, opts)?;
+            let write = !done(frame);
+            if write {
+                let out = FrameOutput {
+                    image: &image,
+                    settings: &settings,
+                    blobs: &blobs,
+                    voxel,
+                };
+                write_frame(scene, &setup.dir, frame, &out, opts)?;
+            }
+            let written = Instant::now();
+            if let Some(basis) = &basis {
+                stats.push(basis.frame(frame, &blobs, Some(&image)));
+            }
             render_s += (rendered - start).as_secs_f64();
-            write_s += rendered.elapsed().as_secs_f64();
-            report.rendered += 1;
+            write_s += (written - rendered).as_secs_f64();
+            stats_s += written.elapsed().as_secs_f64();
+            if write {
+                report.rendered += 1;
+            } else {
+                report.skipped += 1;
+            }
             on_frame(&FrameReport {
                 frame,
                 of: setup.total,
-                skipped: false,
+                skipped: !write,
                 seconds: start.elapsed().as_secs_f64(),
             });
         }
         timings.stages.push(("render".into(), render_s));
         timings.stages.push(("write".into(), write_s));
+        if basis.is_some() {
+            timings.stages.push(("stats".into(), stats_s));
+            let path = super::stats::stats_path(scene, &setup.dir);
+            super::stats::write_csv(&path, &stats)?;
+            report.stats = Some(path);
+        }
     } else {
         for frame in setup.frames.clone() {
             report.skipped += 1;

@@ -27,11 +27,34 @@ pub fn load_target(
     scene: &Scene,
     cache_dir: &Path,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
+    load_spec(scene, &scene.file.target, cache_dir)
+}
+
+/// Load (or fit and cache in `cache_dir`) the model `spec` of `scene` (its target, or a
+/// morph's `from`). `Model("builtin:cumulus")` is the procedural cumulus.
+pub fn load_spec(
+    scene: &Scene,
+    spec: &Target,
+    cache_dir: &Path,
+) -> Result<(BlobModel, TargetOrigin), SceneError> {
     let model_err = |source| SceneError::Model {
         scene: scene.path.clone(),
         source,
     };
-    match &scene.file.target {
+    match spec {
+        Target::Model(p) if p.starts_with("builtin:") => {
+            let name = &p["builtin:".len()..];
+            let m = crate::animate::cumulus::builtin_model(name).ok_or_else(|| {
+                SceneError::Invalid {
+                    path: scene.path.clone(),
+                    field: "target".into(),
+                    message: format!(
+                        "no builtin model {p:?}; the builtin model is builtin:cumulus"
+                    ),
+                }
+            })?;
+            Ok((m, TargetOrigin::ModelFile(PathBuf::from(p))))
+        }
         Target::Model(p) => {
             let path = PathBuf::from(p);
             let m = crate::blobby::load_model(&path).map_err(model_err)?;

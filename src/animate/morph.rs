@@ -1,0 +1,355 @@
+//! The metamorphosis scheme (the paper's motivation: a piece of cloud turning into a shape):
+//! one blob model turns into another.
+//!
+//! - **Alignment.** The source is first moved and uniformly scaled so that its blob bounds have
+//!   the target's centre and diagonal (a natural cloud becomes the shape where the shape is).
+//! - **Pairing.** Source and target blobs (live ones) are paired by the assignment that
+//!   minimises the total travel (sum of centre distances), solved exactly (Hungarian method,
+//!   O(n³); models have a few hundred blobs). When the counts differ, each surplus target
+//!   blob *splits* from the source partner of its nearest paired target blob (it starts there
+//!   at zero size and grows), and each surplus source blob *merges* into the target partner of
+//!   its nearest paired source blob (it travels there and shrinks to nothing).
+//! - **Motion.** Every blob moves along a smoothstep-eased straight path while its semi-axes,
+//!   `A`, `B` are interpolated linearly and its rotation by slerp. Starts are staggered: blobs
+//!   whose target is nearer the target's centroid move first (inside out), over the first
+//!   `stagger` fraction of the motion, so the core of the cloud forms first and the cloud stays
+//!   one piece.
+//! - **Blob list.** Index `i < n` (the target's length) is target blob `i`; surplus source
+//!   blobs follow. The last frame is the target, followed by the merged blobs hidden (`B = 0`).
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use super::{AnimateError, Timeline, blend_shape, blob_bounds, invalid, smoothstep};
+use crate::blobby::Blob;
+
+/// Settings of the morph scheme. `from` is read by the scene (any target: a model file, a
+/// fitted mesh, or `Model("builtin:cumulus")`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MorphConfig {
+    /// The model the cloud starts as.
+    pub from: crate::scene::Target,
+    /// Fraction of the motion over which the blobs' starts are spread, in `[0, 0.9]`.
+    #[serde(default = "default_stagger")]
+    pub stagger: f64,
+    /// Seconds the source holds still at the start of the shot.
+    #[serde(default = "default_lead")]
+    pub lead_seconds: f64,
+    /// Seconds the finished target holds still at the end of the shot.
+    #[serde(default = "default_hold")]
+    pub hold_seconds: f64,
+}
+
+fn default_stagger() -> f64 {
+    0.4
+}
+fn default_lead() -> f64 {
+    0.5
+}
+fn default_hold() -> f64 {
+    0.5
+}
+
+impl MorphConfig {
+    /// Check ranges; errors name the field as `animation.NAME`.
+    pub fn validate(&self) -> Result<(), AnimateError> {
+        if !(self.stagger.is_finite() && (0.0..=0.9).contains(&self.stagger)) {
+            return Err(invalid(
+                "animation.stagger",
+                format!("must be a fraction in [0, 0.9], got {}", self.stagger),
+            ));
+        }
+        for (name, v) in [
+            ("lead_seconds", self.lead_seconds),
+            ("hold_seconds", self.hold_seconds),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(
+                    &format!("animation.{name}"),
+                    format!("must be a finite number of seconds ≥ 0, got {v}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A planned morph.
+#[derive(Clone, Debug)]
+pub struct MorphPlan {
+    /// Per entry of the blob list: where it starts and ends (shape and place).
+    from: Vec<Blob>,
+    to: Vec<Blob>,
+    /// Per entry: start of its motion as a fraction of the motion, and its duration.
+    start: Vec<f64>,
+    span: f64,
+    lead: f64,
+    target: Vec<Blob>,
+    timeline: Timeline,
+}
+
+impl MorphPlan {
+    /// Plan the morph of `source` into `target` (config already validated).
+    pub fn new(
+        cfg: &MorphConfig,
+        source: &[Blob],
+        target: &[Blob],
+        timeline: Timeline,
+    ) -> MorphPlan {
+        let source = align(source, target);
+        let s_live: Vec<usize> = (0..source.len()).filter(|&i| source[i].is_live()).collect();
+        let t_live: Vec<usize> = (0..target.len()).filter(|&i| target[i].is_live()).collect();
+        let cost = |a: usize, b: usize| source[s_live[a]].center.distance(target[t_live[b]].center);
+        // Rows = the smaller side.
+        let swap = s_live.len() > t_live.len();
+        let (rows, cols) = if swap {
+            (t_live.len(), s_live.len())
+        } else {
+            (s_live.len(), t_live.len())
+        };
+        let assignment = hungarian(
+            rows,
+            cols,
+            |r, c| if swap { cost(c, r) } else { cost(r, c) },
+        );
+        // partner_of_target[t] = source index (both in model indices).
+        let mut partner_of_target = vec![None; target.len()];
+        let mut partner_of_source = vec![None; source.len()];
+        for (r, &c) in assignment.iter().enumerate() {
+            let (si, ti) = if swap {
+                (s_live[c], t_live[r])
+            } else {
+                (s_live[r], t_live[c])
+            };
+            partner_of_target[ti] = Some(si);
+            partner_of_source[si] = Some(ti);
+        }
+        let paired_targets: Vec<usize> = t_live
+            .iter()
+            .copied()
+            .filter(|&t| partner_of_target[t].is_some())
+            .collect();
+        let paired_sources: Vec<usize> = s_live
+            .iter()
+            .copied()
+            .filter(|&s| partner_of_source[s].is_some())
+            .collect();
+        let nearest = |set: &[usize], blobs: &[Blob], x: DVec3| -> Option<usize> {
+            set.iter().copied().min_by(|&a, &b| {
+                blobs[a]
+                    .center
+                    .distance_squared(x)
+                    .total_cmp(&blobs[b].center.distance_squared(x))
+            })
+        };
+        let mut from = Vec::with_capacity(target.len());
+        let mut to = Vec::with_capacity(target.len());
+        for (ti, t) in target.iter().enumerate() {
+            let start = if !t.is_live() {
+                *t
+            } else if let Some(si) = partner_of_target[ti] {
+                source[si]
+            } else {
+                // Split from the source partner of the nearest paired target blob.
+                let host = nearest(&paired_targets, target, t.center)
+                    .and_then(|h| partner_of_target[h])
+                    .map_or(t.center, |s| source[s].center);
+                Blob {
+                    center: host,
+                    semi_axes: DVec3::ZERO,
+                    ..*t
+                }
+            };
+            from.push(start);
+            to.push(*t);
+        }
+        for &si in &s_live {
+            if partner_of_source[si].is_some() {
+                continue;
+            }
+            // Merge into the target partner of the nearest paired source blob.
+            let s = source[si];
+            let host = nearest(&paired_sources, &source, s.center)
+                .and_then(|h| partner_of_source[h])
+                .map_or(s.center, |t| target[t].center);
+            from.push(s);
+            to.push(Blob {
+                center: host,
+                semi_axes: DVec3::ZERO,
+                b: 0.0,
+                ..s
+            });
+        }
+        // Inside out: rank by the distance of the end point from the target's centroid.
+        let centroid =
+            t_live.iter().map(|&i| target[i].center).sum::<DVec3>() / t_live.len().max(1) as f64;
+        let mut rank: Vec<usize> = (0..to.len()).collect();
+        rank.sort_by(|&a, &b| {
+            to[a]
+                .center
+                .distance_squared(centroid)
+                .total_cmp(&to[b].center.distance_squared(centroid))
+                .then(a.cmp(&b))
+        });
+        let mut start = vec![0.0; to.len()];
+        let n = rank.len().max(2) - 1;
+        for (r, &i) in rank.iter().enumerate() {
+            start[i] = cfg.stagger * r as f64 / n as f64;
+        }
+        MorphPlan {
+            from,
+            to,
+            start,
+            span: 1.0 - cfg.stagger,
+            lead: cfg.lead_seconds,
+            target: target.to_vec(),
+            timeline,
+        }
+    }
+
+    /// The shot's timeline.
+    pub fn timeline(&self) -> Timeline {
+        self.timeline
+    }
+
+    /// The blobs of frame `k` (target first, then merged source blobs).
+    pub fn frame(&self, k: usize) -> Vec<Blob> {
+        let done = self.timeline.progress(k) >= 1.0;
+        if done {
+            let mut out = self.target.clone();
+            out.extend(
+                self.to[self.target.len()..]
+                    .iter()
+                    .map(|b| Blob { b: 0.0, ..*b }),
+            );
+            return out;
+        }
+        let motion = (self.timeline.motion_seconds() - self.lead).max(1e-9);
+        let u = ((self.timeline.time(k) - self.lead) / motion).clamp(0.0, 1.0);
+        (0..self.to.len())
+            .map(|i| {
+                let e = smoothstep((u - self.start[i]) / self.span);
+                let (a, b) = (&self.from[i], &self.to[i]);
+                let mut blob = blend_shape(a, b, e, a.center.lerp(b.center, e));
+                if !blob.is_live() || blob.semi_axes.min_element() <= 0.0 {
+                    blob.b = 0.0;
+                }
+                blob
+            })
+            .collect()
+    }
+}
+
+/// `source` moved and uniformly scaled so that its blob bounds have `target`'s centre and
+/// diagonal.
+fn align(source: &[Blob], target: &[Blob]) -> Vec<Blob> {
+    let (sb, tb) = (blob_bounds(source), blob_bounds(target));
+    if sb.is_empty() || tb.is_empty() {
+        return source.to_vec();
+    }
+    let scale = tb.diagonal() / sb.diagonal().max(f64::MIN_POSITIVE);
+    let (sc, tc) = (sb.center(), tb.center());
+    source
+        .iter()
+        .map(|b| Blob {
+            center: tc + (b.center - sc) * scale,
+            semi_axes: b.semi_axes * scale,
+            ..*b
+        })
+        .collect()
+}
+
+/// Minimum-cost assignment of each of `rows` rows to a distinct one of `cols ≥ rows` columns
+/// (Hungarian method with potentials, O(rows² · cols)); returns the column of each row.
+pub fn hungarian(rows: usize, cols: usize, cost: impl Fn(usize, usize) -> f64) -> Vec<usize> {
+    assert!(rows <= cols, "more rows than columns");
+    // 1-based arrays, column 0 is the virtual start.
+    let (mut u, mut v) = (vec![0.0; rows + 1], vec![0.0; cols + 1]);
+    let mut owner = vec![0usize; cols + 1];
+    let mut way = vec![0usize; cols + 1];
+    for r in 1..=rows {
+        owner[0] = r;
+        let mut j0 = 0;
+        let mut minv = vec![f64::INFINITY; cols + 1];
+        let mut used = vec![false; cols + 1];
+        loop {
+            used[j0] = true;
+            let i0 = owner[j0];
+            let (mut delta, mut j1) = (f64::INFINITY, 0);
+            for j in 1..=cols {
+                if used[j] {
+                    continue;
+                }
+                let cur = cost(i0 - 1, j - 1) - u[i0] - v[j];
+                if cur < minv[j] {
+                    minv[j] = cur;
+                    way[j] = j0;
+                }
+                if minv[j] < delta {
+                    delta = minv[j];
+                    j1 = j;
+                }
+            }
+            for j in 0..=cols {
+                if used[j] {
+                    u[owner[j]] += delta;
+                    v[j] -= delta;
+                } else {
+                    minv[j] -= delta;
+                }
+            }
+            j0 = j1;
+            if owner[j0] == 0 {
+                break;
+            }
+        }
+        loop {
+            let j1 = way[j0];
+            owner[j0] = owner[j1];
+            j0 = j1;
+            if j0 == 0 {
+                break;
+            }
+        }
+    }
+    let mut result = vec![0; rows];
+    for j in 1..=cols {
+        if owner[j] > 0 {
+            result[owner[j] - 1] = j - 1;
+        }
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hungarian_finds_the_optimum_of_small_problems() {
+        // Brute force over all injective maps of 3 rows into 4 columns.
+        let c = [
+            [4.0, 1.0, 3.0, 9.0],
+            [2.0, 0.0, 5.0, 1.0],
+            [3.0, 2.0, 2.0, 7.0],
+        ];
+        let got = hungarian(3, 4, |r, k| c[r][k]);
+        let total: f64 = got.iter().enumerate().map(|(r, &k)| c[r][k]).sum();
+        let mut best = f64::INFINITY;
+        for a in 0..4 {
+            for b in 0..4 {
+                for d in 0..4 {
+                    if a != b && b != d && a != d {
+                        best = best.min(c[0][a] + c[1][b] + c[2][d]);
+                    }
+                }
+            }
+        }
+        assert_eq!(total, best);
+        let mut cols = got.clone();
+        cols.sort();
+        cols.dedup();
+        assert_eq!(cols.len(), 3);
+    }
+}

@@ -1,0 +1,168 @@
+//! Per-frame statistics of a shot (`nephele render SCENE --stats`, `NAME_stats.csv`): how much
+//! of the target is visible, in how many pieces, and how much of the screen it covers.
+//!
+//! - 3D: the blob field's solid `F ≥ 0` on a lattice of 1 % of the target's diagonal, with its
+//!   6-connected components ([`crate::animate::stats`]); independent of the renderer's look.
+//! - 2D: the rendered alpha from the scene's camera, pixels with alpha > 0.05, 4-connected
+//!   components ([`crate::animate::stats::coverage`]).
+//!
+//! CSV columns: `frame` (1-based), `time_s`, `visible_blobs`, `volume_fraction` (visible cells
+//! over the last frame's), `components_3d`, `largest_3d` (share of the visible cells in the
+//! largest component), `coverage` (fraction of the image's pixels), `components_2d`,
+//! `largest_2d`. The 2D columns are empty for frames whose image was not rendered.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::shot::{Prepared, ShotSetup, frame_settings, prepare};
+use super::target::load_target;
+use super::{RenderOptions, Scene, SceneError};
+use crate::animate::stats::{
+    ALPHA_LEVEL, Coverage, DEFAULT_CELL_FRACTION, Lattice, VisibleVolume, coverage, visible_volume,
+};
+use crate::blobby::Blob;
+use crate::render::{self, Frame};
+
+/// The statistics of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameStats {
+    /// 1-based frame number.
+    pub frame: u32,
+    /// Time of the frame in seconds.
+    pub time: f64,
+    /// Live blobs in the frame.
+    pub visible_blobs: usize,
+    /// The visible solid on the lattice.
+    pub volume: VisibleVolume,
+    /// Visible cells over the last frame's.
+    pub volume_fraction: f64,
+    /// Screen coverage, when the frame's image was rendered.
+    pub coverage: Option<Coverage>,
+}
+
+/// What the statistics of every frame of a shot share: the lattice and the final volume.
+#[derive(Clone, Copy, Debug)]
+pub struct StatsBasis {
+    lattice: Lattice,
+    threshold: f64,
+    final_voxels: usize,
+    fps: f64,
+}
+
+impl StatsBasis {
+    /// The basis of `prep`'s shot: lattice from the target's box, final volume from the last
+    /// frame of the plan.
+    pub fn new(prep: &Prepared) -> StatsBasis {
+        let lattice = Lattice::for_target(&prep.bounds, DEFAULT_CELL_FRACTION);
+        let timeline = prep.plan.timeline();
+        let last = prep.plan.frame(timeline.frames.saturating_sub(1));
+        let threshold = prep.model.threshold;
+        let final_voxels = visible_volume(&last, threshold, lattice).voxels;
+        StatsBasis {
+            lattice,
+            threshold,
+            final_voxels,
+            fps: timeline.fps,
+        }
+    }
+
+    /// Statistics of 1-based `frame` with blobs `blobs` and, if rendered, its image.
+    pub fn frame(&self, frame: u32, blobs: &[Blob], image: Option<&Frame>) -> FrameStats {
+        let volume = visible_volume(blobs, self.threshold, self.lattice);
+        FrameStats {
+            frame,
+            time: (frame - 1) as f64 / self.fps,
+            visible_blobs: blobs.iter().filter(|b| b.is_live()).count(),
+            volume,
+            volume_fraction: volume.voxels as f64 / self.final_voxels.max(1) as f64,
+            coverage: image
+                .map(|f| coverage(&f.alpha, f.width as usize, f.height as usize, ALPHA_LEVEL)),
+        }
+    }
+}
+
+/// Statistics of every frame in the options' range without writing frames: the 3D part for
+/// every frame, the 2D part from an in-memory render of every `alpha_every`-th frame (counted
+/// from the first of the range; the range's last frame always; 0 = never).
+pub fn shot_stats(
+    scene: &Scene,
+    opts: &RenderOptions,
+    alpha_every: u32,
+) -> Result<Vec<FrameStats>, SceneError> {
+    let setup = super::shot::shot_setup(scene, opts)?;
+    let (model, _) = load_target(scene, &setup.cache_dir)?;
+    let prep = prepare(scene, model)?;
+    let basis = StatsBasis::new(&prep);
+    let (first, last) = (*setup.frames.start(), *setup.frames.end());
+    Ok(setup
+        .frames
+        .clone()
+        .map(|frame| {
+            let k = frame - 1;
+            let blobs = prep.plan.frame(k as usize);
+            let render = alpha_every > 0 && ((frame - first) % alpha_every == 0 || frame == last);
+            let image = render.then(|| render_in_memory(scene, &prep, &setup, k, opts, &blobs));
+            basis.frame(frame, &blobs, image.as_ref())
+        })
+        .collect())
+}
+
+/// Render 0-based frame `k` without writing it.
+pub(crate) fn render_in_memory(
+    scene: &Scene,
+    prep: &Prepared,
+    setup: &ShotSetup,
+    k: u32,
+    opts: &RenderOptions,
+    blobs: &[Blob],
+) -> Frame {
+    let settings = frame_settings(scene, prep, setup, k, opts.preview);
+    render::render_frame(&settings, blobs, k)
+}
+
+/// The CSV text of `stats` (header, then one line per frame).
+pub fn to_csv(stats: &[FrameStats]) -> String {
+    let mut s = String::from(
+        "frame,time_s,visible_blobs,volume_fraction,components_3d,largest_3d,coverage,components_2d,largest_2d\n",
+    );
+    for f in stats {
+        let _ = write!(
+            s,
+            "{},{:.4},{},{:.5},{},{:.5},",
+            f.frame,
+            f.time,
+            f.visible_blobs,
+            f.volume_fraction,
+            f.volume.components,
+            f.volume.largest_share()
+        );
+        match f.coverage {
+            Some(c) => {
+                let _ = writeln!(
+                    s,
+                    "{:.5},{},{:.5}",
+                    c.fraction,
+                    c.components,
+                    c.largest_share()
+                );
+            }
+            None => s.push_str(",,\n"),
+        }
+    }
+    s
+}
+
+/// Write `stats` as CSV to `path` atomically.
+pub fn write_csv(path: &Path, stats: &[FrameStats]) -> Result<(), SceneError> {
+    crate::atomic::write_bytes_atomically(path, to_csv(stats).as_bytes()).map_err(|source| {
+        SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+/// The stats file of a shot: `<dir>/<name>_stats.csv`.
+pub fn stats_path(scene: &Scene, dir: &Path) -> std::path::PathBuf {
+    dir.join(format!("{}_stats.csv", scene.name))
+}
