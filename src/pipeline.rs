@@ -19,8 +19,9 @@ pub use crate::blobby::optimise::Optimisation;
 /// [`FitConfig`]. Bump it whenever a change makes `fit` give a different model for the same
 /// config (a cached fit from an older build is then redone, not reused).
 /// History: 1 = inside/outside by parry's pseudo-normal test and a flood fill; 2 = by the
-/// generalized winding number.
-pub const FIT_ALGORITHM_VERSION: u32 = 2;
+/// generalized winding number; 3 = part of a small selection held back for the adaptive budget,
+/// six final sweeps under a weaker shape prior.
+pub const FIT_ALGORITHM_VERSION: u32 = 3;
 
 /// Settings of a fit. Lengths are relative to the mesh's bounding-box diagonal. The defaults
 /// of the counts every front end offers (CLI, scene files) are the `DEFAULT_*` constants, and

@@ -62,11 +62,16 @@ pub struct Optimised {
 /// Optimise the selected blobs against the target at iso-level `threshold`. Full mode runs, in
 /// order: the faithful pass (the paper's `(A, B)` fit, which also switches off redundant
 /// blobs); the full problem on every blob; the drop of the blobs the passes switched off; the
-/// adaptive budget (their count re-spent at the worst shortfalls from the unused candidates);
-/// final sweeps over every blob; the drop of negligible blobs. Deterministic at any thread count.
+/// adaptive budget (their count and the selection's held-back share, see
+/// [`FullConfig::budget_reserve`], spent at the worst shortfalls from the unused candidates);
+/// final sweeps over every blob; the drop of negligible blobs. Deterministic at any thread
+/// count.
 pub fn optimise(how: &Optimisation, target: &Target, start: &Start, threshold: f64) -> Optimised {
-    let mut blobs: Vec<Blob> = start
-        .selected
+    let held_back = match how {
+        Optimisation::Full(_, full) => full.held_back(start.selected.len()),
+        _ => 0,
+    };
+    let mut blobs: Vec<Blob> = start.selected[..start.selected.len() - held_back]
         .iter()
         .map(|&i| Blob::from_ellipsoid(&start.candidates[i], start.initial_a))
         .collect();
@@ -135,6 +140,12 @@ fn full_steps(
     );
     // The budget re-fits only around the blobs it adds; a last pass over all lets the rest
     // settle with them.
-    problem.optimise(blobs, &anchors, cfg.final_sweeps, None);
+    problem.optimise_with_prior(
+        blobs,
+        &anchors,
+        cfg.final_sweeps,
+        None,
+        cfg.final_shape_prior,
+    );
     drop_negligible(blobs, threshold);
 }
