@@ -199,17 +199,21 @@ t=$(now)
 "$bin" prepare "$scene" --preview --output "$tmp/local" 2>/dev/null
 "$bin" render "$scene" --preview --output "$tmp/local" 2>/dev/null
 local_preview=$(since "$t")
+# The shot's length comes from the scene: count the frames the local render wrote.
+total=$(find "$tmp/local/preview" -maxdepth 1 -name 'duck-diffusion_*.exr' | wc -l)
+[ "$total" -ge 4 ] && [ $((total % 4)) = 0 ] || fail "the preview shot has $total frames: expected a multiple of 4"
+chunk=$((total / 4))
 "$bin" prepare "$scene" --preview --output "$tmp/local2" 2>/dev/null
 "$bin" render "$scene" --preview --output "$tmp/local2" 2>/dev/null
-same_frames "$tmp/local/preview" "$tmp/local2/preview" 1 96
+same_frames "$tmp/local/preview" "$tmp/local2/preview" 1 "$total"
 cmp -s "$tmp"/local/target-*.ron "$tmp"/local2/target-*.ron || fail "two fits differ"
-echo "local renders are byte-identical across runs (96 preview frames, EXR and PNG, and the fit)"
+echo "local renders are byte-identical across runs ($total preview frames, EXR and PNG, and the fit)"
 
 # --- 2. the preview shot as a 4-task array -------------------------------------------------
 # (the farm's output folder has a space in its name: the job scripts must quote their paths)
 farm="$tmp/farm out"
 t=$(now)
-out=$("$bin" farm "$scene" --engine slurm --chunk 24 --preview --output "$farm" --submit)
+out=$("$bin" farm "$scene" --engine slurm --chunk "$chunk" --preview --output "$farm" --submit)
 read -r prep arr <<<"$(job_ids "$out")"
 jobs_submitted="$prep $arr"
 grep -q "^4 tasks" <<<"$out" || fail "expected 4 tasks:
@@ -218,14 +222,14 @@ wait_jobs 300 "$prep" "$arr"
 farm_preview=$(since "$t")
 check_completed "$prep" 1
 check_completed "$arr" 4
-same_frames "$tmp/local/preview" "$farm/preview" 1 96
+same_frames "$tmp/local/preview" "$farm/preview" 1 "$total"
 cmp -s "$tmp"/local/target-*.ron "$farm"/target-*.ron || fail "the farm's fit differs from the local one"
 for i in 0 1 2 3; do
-	grep -q "^$farm/preview: 24 frames rendered, 0 already done" \
+	grep -q "^$farm/preview: $chunk frames rendered, 0 already done" \
 		"$farm/preview/logs/duck-diffusion-preview_${arr}_$i.log" ||
-		fail "task $i did not render 24 frames: $(cat "$farm/preview/logs/duck-diffusion-preview_${arr}_$i.log")"
+		fail "task $i did not render $chunk frames: $(cat "$farm/preview/logs/duck-diffusion-preview_${arr}_$i.log")"
 done
-echo "array $arr: 4 tasks completed; 96 preview frames equal the local render byte for byte"
+echo "array $arr: 4 tasks completed; $total preview frames equal the local render byte for byte"
 
 # --- 3. kill a task mid-frame, requeue it, check it resumes --------------------------------
 t=$(now)
@@ -270,7 +274,7 @@ read -r rendered skipped <<<"$resumed"
 $(cat "$log0")"
 # Across the killed and the requeued run, every frame of the chunk was finished exactly once.
 for f in 85 86 87; do
-	[ "$(grep -c "^frame *$f/96:" "$log0")" = 1 ] || fail "frame $f was not rendered exactly once by task 0:
+	[ "$(grep -c "^frame *$f/$total:" "$log0")" = 1 ] || fail "frame $f was not rendered exactly once by task 0:
 $(cat "$log0")"
 done
 same_frames "$tmp/local" "$farm" 85 96
@@ -285,16 +289,16 @@ if [ "${NEPHELE_SLURM_BENCH:-0}" = 1 ]; then
 	"$bin" render "$scene" --output "$tmp/bench-local" 2>/dev/null
 	local_bench=$(since "$t")
 	t=$(now)
-	out=$("$bin" farm "$scene" --engine slurm --chunk 24 --output "$tmp/bench-farm" --submit)
+	out=$("$bin" farm "$scene" --engine slurm --chunk "$chunk" --output "$tmp/bench-farm" --submit)
 	read -r prep arr <<<"$(job_ids "$out")"
 	jobs_submitted="$prep $arr"
 	wait_jobs 1800 "$prep" "$arr"
 	farm_bench=$(since "$t")
 	check_completed "$arr" 4
-	same_frames "$tmp/bench-local" "$tmp/bench-farm" 1 96
-	echo "wall time: whole shot at full quality (96 frames, 640x360) 4-task array ${farm_bench} s vs local ${local_bench} s (both include the fit); frames equal"
+	same_frames "$tmp/bench-local" "$tmp/bench-farm" 1 "$total"
+	echo "wall time: whole shot at full quality ($total frames, 640x360) 4-task array ${farm_bench} s vs local ${local_bench} s (both include the fit); frames equal"
 fi
 
-echo "wall time: preview shot (96 frames, 160x90) 4-task array ${farm_preview} s vs local ${local_preview} s (both include the fit)"
+echo "wall time: preview shot ($total frames, 160x90) 4-task array ${farm_preview} s vs local ${local_preview} s (both include the fit)"
 echo "wall time: full quality frames 85..96 (640x360) 4-task array with one requeue ${farm_full} s vs local ${local_full} s (target cached)"
 echo "farm test passed"
