@@ -442,10 +442,12 @@ fn horse_diffusion_meets_the_bars_standing_upright() {
     let Some((scene, stats)) = shipped_stats("horse-diffusion.ron") else {
         return;
     };
-    // The coverage bar is on the renderer's alpha (measured 0.34 of the final coverage in the
-    // worst second): a new cloud look may move it. Issue 13's look puts density only inside
-    // the iso-surface (no sub-threshold puffs), so the last small blobs appear only once their
-    // field reaches it: 0.406 (frames 109–133). Bar 0.41 — for the lead to weigh (coord.md).
+    // KNOWN MISS (README, "Animation statistics"): the issue's coverage bar is 0.35 a second.
+    // The current look puts density only inside the model's surface, so the horse's last leg
+    // blobs appear only once their field reaches it: 0.41 of the final coverage in the worst
+    // second, and the largest screen piece dips to 0.92 in frames 110–112, which this test's
+    // every-4th-frame sampling does not see. This test guards against getting worse; it does
+    // not claim the bar.
     assert_one_piece_and_smooth("horse-diffusion", &scene, &stats, 0.41);
     assert_grows("horse-diffusion", &scene, &stats, 0.06);
     // Upright, seen from the side (camera from +X): longer along Z than tall, taller than wide.
