@@ -20,6 +20,7 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use super::Mesh;
+use crate::geometry::Aabb;
 
 /// Triangles per leaf.
 const LEAF: usize = 8;
@@ -157,7 +158,7 @@ fn build(tris: &mut [[DVec3; 3]], start: usize, end: usize, nodes: &mut Vec<Node
     let mut area_vector = DVec3::ZERO;
     let mut weighted = DVec3::ZERO;
     let mut area = 0.0;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut centroids = Aabb::EMPTY;
     for t in slice {
         let av = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]);
         let a = av.length();
@@ -165,13 +166,12 @@ fn build(tris: &mut [[DVec3; 3]], start: usize, end: usize, nodes: &mut Vec<Node
         area_vector += av;
         weighted += a * centroid;
         area += a;
-        lo = lo.min(centroid);
-        hi = hi.max(centroid);
+        centroids = centroids.grown(centroid);
     }
     let center = if area > 0.0 {
         weighted / area
     } else {
-        (lo + hi) * 0.5
+        centroids.center()
     };
     let moment = slice.iter().fold(DMat3::ZERO, |m, t| {
         let av = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]);
@@ -197,7 +197,7 @@ fn build(tris: &mut [[DVec3; 3]], start: usize, end: usize, nodes: &mut Vec<Node
     });
     if end - start > LEAF {
         // Median split of the centroids along the longest axis of their box.
-        let axis = (hi - lo).to_array();
+        let axis = centroids.size().to_array();
         let axis = (0..3)
             .max_by(|&a, &b| axis[a].total_cmp(&axis[b]))
             .unwrap_or(0);
