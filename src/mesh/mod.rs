@@ -228,18 +228,14 @@ pub fn load(source: &str) -> Result<LoadedMesh, MeshError> {
     }
     // Closed: the signed volume (the integral of the winding number, cheap). Open: the
     // winding number across the faces (the signed volume then depends on the origin).
-    let inward = if open_edges == 0 {
-        mesh.signed_volume() < 0.0
+    let (inward, why) = if open_edges == 0 {
+        (mesh.signed_volume() < 0.0, "negative signed volume")
     } else {
-        winding::orientation(&mesh, &winding::WindingNumber::new(&mesh), 4096) < 0.0
+        let w = winding::orientation(&mesh, &winding::WindingNumber::new(&mesh), 4096);
+        (w < 0.0, "negative winding number behind the faces")
     };
     if inward {
         mesh.flip_orientation();
-        let why = if open_edges == 0 {
-            "negative signed volume"
-        } else {
-            "negative winding number behind the faces"
-        };
         warnings.push(format!(
             "{source}: faces were wound inward ({why}); flipped them"
         ));
