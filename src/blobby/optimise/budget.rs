@@ -142,7 +142,13 @@ impl Budget<'_> {
             }
             anchors.extend_from_slice(&blobs[before..]);
             let active = overlapping(blobs, before);
-            problem.optimise(blobs, anchors, cfg.budget_sweeps, Some(&active));
+            problem.optimise(
+                blobs,
+                anchors,
+                cfg.budget_sweeps,
+                Some(&active),
+                cfg.shape_prior,
+            );
             drop_dead(blobs, anchors);
         }
     }

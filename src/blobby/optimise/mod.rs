@@ -394,20 +394,10 @@ impl<'a> FullProblem<'a> {
     }
 
     /// Run `sweeps` sweeps over the blobs flagged in `active` (every blob when `None`), in
-    /// place. `anchors[i]` is where blob `i`'s shape prior holds it (its decomposition
-    /// ellipsoid). Deterministic at any thread count.
+    /// place. `anchors[i]` is where blob `i`'s shape prior, of strength `shape_prior` (see
+    /// [`FullConfig::shape_prior`]), holds it (its decomposition ellipsoid). Deterministic at
+    /// any thread count.
     pub fn optimise(
-        &self,
-        blobs: &mut [Blob],
-        anchors: &[Blob],
-        sweeps: usize,
-        active: Option<&[bool]>,
-    ) {
-        self.optimise_with_prior(blobs, anchors, sweeps, active, self.cfg.shape_prior);
-    }
-
-    /// [`FullProblem::optimise`] with the shape prior `shape_prior` instead of the config's.
-    pub fn optimise_with_prior(
         &self,
         blobs: &mut [Blob],
         anchors: &[Blob],
@@ -491,7 +481,7 @@ pub fn optimise_full(
     let anchors = blobs.to_vec();
     let problem = FullProblem::new(cfg, samples, None, far, diag, threshold);
     let rms_before = surface_rms(&BlobField::new(blobs, threshold), &problem.pts, diag);
-    problem.optimise(blobs, &anchors, cfg.sweeps, None);
+    problem.optimise(blobs, &anchors, cfg.sweeps, None, cfg.shape_prior);
     FullReport {
         rms_before,
         rms_after: surface_rms(&BlobField::new(blobs, threshold), &problem.pts, diag),

@@ -117,7 +117,7 @@ fn full_steps(
         threshold,
     );
     let mut anchors = blobs.clone();
-    problem.optimise(blobs, &anchors, cfg.sweeps, None);
+    problem.optimise(blobs, &anchors, cfg.sweeps, None, cfg.shape_prior);
     // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them, keeping the
     // selection order of the rest; their budget is spent where the model falls shortest.
     // Blobs left negligible at the end go too (bytes and render time).
@@ -140,7 +140,7 @@ fn full_steps(
     );
     // The budget re-fits only around the blobs it adds; a last pass over all lets the rest
     // settle with them.
-    problem.optimise_with_prior(
+    problem.optimise(
         blobs,
         &anchors,
         cfg.final_sweeps,
