@@ -2,6 +2,8 @@
 //! python with Debian's `python3-openvdb`; skipped with a message where it is missing), the
 //! Mitsuba `.vol` layout, and the grid against the renderer's density.
 
+mod exr_support;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -313,20 +315,6 @@ fn cloud_scene(test: &str, extra: &str) -> (PathBuf, PathBuf) {
     (dir, path)
 }
 
-/// Read an EXR's first layer attributes with the `exr` crate.
-fn exr_attributes(path: &Path) -> exr::meta::header::LayerAttributes {
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_file(path)
-        .unwrap();
-    image.layer_data[0].attributes.clone()
-}
-
 /// `p·M` for a row-major 4×4 `M` (row vectors), before the homogeneous divide.
 fn row_times(p: [f64; 3], m: &[f32; 16]) -> [f64; 4] {
     std::array::from_fn(|c| {
@@ -347,7 +335,7 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     };
     scene::render_shot(&s, &opts, &mut |_| {}).unwrap();
     assert!(out.join("shot_0006.vdb").is_file());
-    let attrs = exr_attributes(&out.join("shot_0006.exr"));
+    let attrs = exr_support::read_first_layer(&out.join("shot_0006.exr")).attributes;
     let text = |k: &str| match attrs
         .other
         .get(&exr::meta::attribute::Text::new_or_panic(k))

@@ -4,6 +4,8 @@
 //! Benchmark: `cargo test --release --test render -- --ignored --nocapture bench`
 //! Look:      `cargo test --release --test render -- --ignored --nocapture look` (PNGs in /tmp)
 
+mod exr_support;
+
 use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
@@ -282,17 +284,8 @@ fn exr_reads_back_with_channels_and_values() {
     let dir = std::env::temp_dir().join(format!("nephele-render-exr-{}", std::process::id()));
     let path = dir.join("f.exr");
     output::write_exr(&path, &frame).unwrap();
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_file(&path)
-        .unwrap();
-    let layer = &image.layer_data[0];
-    assert_eq!(layer.size, Vec2(40, 24));
+    let layer = exr_support::read_first_layer(&path);
+    assert_eq!(layer.size, exr::math::Vec2(40, 24));
     let names: Vec<String> = layer
         .channel_data
         .list

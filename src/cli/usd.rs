@@ -26,12 +26,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         output: args.frames_dir.clone(),
         ..RenderOptions::default()
     };
+    // The stage covers the whole shot (`setup.total`), whatever the scene's `frames` range.
     let setup = scene::shot::shot_setup(&scene, &opts)?;
-    // The whole shot, whatever the scene's `frames` range.
-    let setup = scene::shot::ShotSetup {
-        frames: 1..=setup.total,
-        ..setup
-    };
     let (model, _) = scene::load_target(&scene, &setup.cache_dir)
         .with_context(|| format!("loading the target of {}", args.scene.display()))?;
     let prep = scene::shot::prepare(&scene, model)?;
@@ -47,12 +43,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     nephele::atomic::write_bytes_atomically(&path, text.as_bytes())
         .with_context(|| format!("writing {}", path.display()))?;
     let missing = (1..=setup.total)
-        .filter(|f| {
-            !setup
-                .dir
-                .join(format!("{}_{f:04}.vdb", scene.name))
-                .is_file()
-        })
+        .filter(|&f| !nephele::export::usd::frame_vdb(&scene, &setup.dir, f).is_file())
         .count();
     eprintln!(
         "{}: {} frames at {} fps",

@@ -44,6 +44,18 @@ impl Leaf {
         [(i >> 6) as i32, ((i >> 3) & 7) as i32, (i & 7) as i32]
     }
 
+    /// The active (positive) voxels: `(index coordinates, value)`.
+    pub fn active(&self) -> impl Iterator<Item = ([i32; 3], f32)> + '_ {
+        self.values
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| **v > 0.0)
+            .map(|(i, &v)| {
+                let o = Leaf::offset(i);
+                (std::array::from_fn(|a| self.origin[a] + o[a]), v)
+            })
+    }
+
     /// Active (positive) voxels.
     pub fn active_count(&self) -> usize {
         self.values.iter().filter(|&&v| v > 0.0).count()
@@ -111,13 +123,10 @@ impl DensityGrid {
     pub fn active_index_bounds(&self) -> Option<([i32; 3], [i32; 3])> {
         let mut lo = [i32::MAX; 3];
         let mut hi = [i32::MIN; 3];
-        for leaf in &self.leaves {
-            for (i, _) in leaf.values.iter().enumerate().filter(|(_, v)| **v > 0.0) {
-                let o = Leaf::offset(i);
-                for a in 0..3 {
-                    lo[a] = lo[a].min(leaf.origin[a] + o[a]);
-                    hi[a] = hi[a].max(leaf.origin[a] + o[a]);
-                }
+        for (ijk, _) in self.leaves.iter().flat_map(Leaf::active) {
+            for a in 0..3 {
+                lo[a] = lo[a].min(ijk[a]);
+                hi[a] = hi[a].max(ijk[a]);
             }
         }
         (lo[0] <= hi[0]).then_some((lo, hi))

@@ -55,10 +55,7 @@ pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: 
         .collect();
     let length = prep.bounds.diagonal().max(1e-12);
     let vdb_paths = (1..=setup.total)
-        .map(|frame| {
-            let file = setup.dir.join(format!("{}_{frame:04}.vdb", scene.name));
-            relative_to(&file, stage_dir)
-        })
+        .map(|frame| relative_to(&frame_vdb(scene, &setup.dir, frame), stage_dir))
         .collect();
     Stage {
         fps: scene.file.shot.fps,
@@ -77,6 +74,11 @@ pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: 
                 .unwrap_or_default()
         ),
     }
+}
+
+/// The VDB file of frame `frame` (1-based) in `dir`, as `nephele render --formats vdb` names it.
+pub fn frame_vdb(scene: &Scene, dir: &Path, frame: u32) -> PathBuf {
+    dir.join(format!("{}_{frame:04}.vdb", scene.name))
 }
 
 /// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.

@@ -12,7 +12,7 @@
 
 use std::path::Path;
 
-use super::grid::DensityGrid;
+use super::grid::{DensityGrid, Leaf};
 
 /// The most voxels a `.vol` file may hold (a dense 1 GiB of floats).
 pub const MAX_VOL_VOXELS: u64 = 1 << 28;
@@ -37,12 +37,9 @@ pub fn encode_vol(grid: &DensityGrid) -> std::io::Result<Vec<u8>> {
     }
     let mut values = vec![0.0f32; count as usize];
     let [nx, ny, _] = dims;
-    for leaf in &grid.leaves {
-        for (i, &v) in leaf.values.iter().enumerate().filter(|(_, v)| **v > 0.0) {
-            let o = super::grid::Leaf::offset(i);
-            let [x, y, z] = std::array::from_fn(|a| (leaf.origin[a] + o[a] - lo[a]) as usize);
-            values[(z * ny + y) * nx + x] = v;
-        }
+    for (ijk, v) in grid.leaves.iter().flat_map(Leaf::active) {
+        let [x, y, z] = std::array::from_fn(|a| (ijk[a] - lo[a]) as usize);
+        values[(z * ny + y) * nx + x] = v;
     }
     let half = 0.5 * grid.voxel;
     let (min, max) = (grid.world(lo), grid.world(hi));
@@ -66,7 +63,7 @@ pub fn encode_vol(grid: &DensityGrid) -> std::io::Result<Vec<u8>> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::grid::{LEAF_VOXELS, Leaf};
+    use super::super::grid::LEAF_VOXELS;
     use super::*;
 
     #[test]
