@@ -119,8 +119,13 @@ pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
 }
 
 fn slurm_header(job: &FarmJob) -> String {
+    format!("#!/bin/bash\n{}", written_by("nephele farm", job))
+}
+
+/// The comment line that opens every job file: the command, version, scene, frames and tasks.
+fn written_by(command: &str, job: &FarmJob) -> String {
     format!(
-        "#!/bin/bash\n# Written by `nephele farm` (nephele {}): {} frames {}..{} in {} tasks.\n",
+        "# Written by `{command}` (nephele {}): {} frames {}..{} in {} tasks.\n",
         env!("CARGO_PKG_VERSION"),
         path_text(&job.scene),
         job.frames.start(),
@@ -183,13 +188,8 @@ pub fn k8s_indexed_job(job: &FarmJob, pod: &K8sPod) -> String {
 
 fn k8s_head(job: &FarmJob, name: &str) -> String {
     format!(
-        "# Written by `nephele farm --engine k8s` (nephele {}): {} frames {}..{} in {} tasks.\n\
-         apiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\nspec:\n",
-        env!("CARGO_PKG_VERSION"),
-        path_text(&job.scene),
-        job.frames.start(),
-        job.frames.end(),
-        job.tasks
+        "{}apiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\nspec:\n",
+        written_by("nephele farm --engine k8s", job)
     )
 }
 

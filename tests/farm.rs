@@ -32,6 +32,11 @@ fn ok(o: Output) -> String {
     t
 }
 
+/// Run `c`, assert it succeeded and return its stdout and stderr.
+fn run(c: &mut Command) -> String {
+    ok(c.output().unwrap())
+}
+
 /// A folder with `shot.ron`: a tiny 10-frame shot of a coarse sphere fit.
 fn shot_dir(test: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("nephele-farm-{test}-{}", std::process::id()));
@@ -80,23 +85,15 @@ fn same_bytes(a: &Path, b: &Path) {
 #[test]
 fn task_chunks_cover_the_shot_once_and_equal_a_whole_render() {
     let dir = shot_dir("chunks");
-    ok(bin(&dir)
-        .args(["render", "shot.ron", "--output", "whole"])
-        .output()
-        .unwrap());
-    ok(bin(&dir)
-        .args(["prepare", "shot.ron", "--output", "tasks"])
-        .output()
-        .unwrap());
+    run(bin(&dir).args(["render", "shot.ron", "--output", "whole"]));
+    run(bin(&dir).args(["prepare", "shot.ron", "--output", "tasks"]));
     // 10 frames in 4 tasks: 3, 3, 2, 2 frames.
     let expected = ["1..3", "4..6", "7..8", "9..10"];
     let mut seen = 0;
     for (i, frames) in expected.iter().enumerate() {
-        let t = ok(bin(&dir)
+        let t = run(bin(&dir)
             .args(["render", "shot.ron", "--output", "tasks"])
-            .args(["--task", &format!("{i}/4")])
-            .output()
-            .unwrap());
+            .args(["--task", &format!("{i}/4")]));
         assert!(
             t.contains(&format!("task {i}/4: frames {frames} of 1..10")),
             "{t}"
@@ -108,11 +105,9 @@ fn task_chunks_cover_the_shot_once_and_equal_a_whole_render() {
     same_bytes(&dir.join("whole"), &dir.join("tasks"));
     assert_eq!(frame_files(&dir.join("tasks")).len(), 20);
     // A chunk of a --frames range.
-    let t = ok(bin(&dir)
+    let t = run(bin(&dir)
         .args(["render", "shot.ron", "--output", "tasks"])
-        .args(["--frames", "3..9", "--task", "2/3"])
-        .output()
-        .unwrap());
+        .args(["--frames", "3..9", "--task", "2/3"]));
     assert!(t.contains("task 2/3: frames 8..9 of 3..9"), "{t}");
     assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
     std::fs::remove_dir_all(&dir).unwrap();
@@ -123,11 +118,9 @@ fn auto_reads_each_array_engines_index_variable() {
     let dir = shot_dir("auto");
     for (k, var) in ARRAY_INDEX_VARS.iter().enumerate() {
         let out = format!("out{k}");
-        let t = ok(bin(&dir)
+        let t = run(bin(&dir)
             .args(["render", "shot.ron", "--output", &out, "--task", "auto/5"])
-            .env(var, "3")
-            .output()
-            .unwrap());
+            .env(var, "3"));
         assert!(t.contains("task 3/5: frames 7..8 of 1..10"), "{var}: {t}");
         assert_eq!(
             frame_files(&dir.join(&out)),
@@ -146,10 +139,7 @@ fn auto_reads_each_array_engines_index_variable() {
 #[test]
 fn tasks_racing_on_a_missing_cache_fit_the_same_target() {
     let dir = shot_dir("race");
-    ok(bin(&dir)
-        .args(["prepare", "shot.ron", "--output", "ref"])
-        .output()
-        .unwrap());
+    run(bin(&dir).args(["prepare", "shot.ron", "--output", "ref"]));
     // Two tasks start at once without `prepare`: both fit, both rename their copy into place.
     let children: Vec<_> = (0..2)
         .map(|i| {
@@ -184,12 +174,10 @@ fn tasks_racing_on_a_missing_cache_fit_the_same_target() {
 #[test]
 fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
     let dir = shot_dir("jobs");
-    let t = ok(bin(&dir)
+    let t = run(bin(&dir)
         .args(["farm", "shot.ron", "--engine", "slurm", "--chunk", "3"])
         .args(["--output", "out", "--sbatch-arg=--partition=render"])
-        .args(["--nephele", "/opt/bin/nephele"])
-        .output()
-        .unwrap());
+        .args(["--nephele", "/opt/bin/nephele"]));
     assert!(
         t.starts_with("4 tasks of at most 3 frames (frames 1..10)"),
         "{t}"
@@ -210,10 +198,7 @@ fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
     assert!(prepare.contains("'prepare'"), "{prepare}");
     assert!(out.join("logs").is_dir());
     // The default program is this very binary, by absolute path.
-    ok(bin(&dir)
-        .args(["farm", "shot.ron", "--engine", "slurm", "--output", "out2"])
-        .output()
-        .unwrap());
+    run(bin(&dir).args(["farm", "shot.ron", "--engine", "slurm", "--output", "out2"]));
     let array = std::fs::read_to_string(dir.join("out2/shot.sbatch")).unwrap();
     let exe = std::fs::canonicalize(env!("CARGO_BIN_EXE_nephele")).unwrap();
     assert!(
@@ -222,11 +207,9 @@ fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
     );
     assert!(array.contains("#SBATCH --array=0-0\n"), "{array}");
     // Kubernetes: an Indexed Job whose pods read JOB_COMPLETION_INDEX.
-    ok(bin(&dir)
+    run(bin(&dir)
         .args(["farm", "shot.ron", "--engine", "k8s", "--chunk", "5"])
-        .args(["--output", "out3", "--preview"])
-        .output()
-        .unwrap());
+        .args(["--output", "out3", "--preview"]));
     let job = std::fs::read_to_string(dir.join("out3/preview/shot.k8s.yaml")).unwrap();
     assert!(
         job.contains("completionMode: Indexed\n  completions: 2\n"),

@@ -81,8 +81,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..RenderOptions::default()
     };
     let setup = scene::shot::shot_setup(&scene, &opts)?;
-    let frame_count = setup.frames.end() - setup.frames.start() + 1;
-    let chunk_frames = args.chunk.unwrap_or(DEFAULT_CHUNK.min(frame_count));
+    let chunk_frames = args
+        .chunk
+        .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(&setup.frames)));
     let tasks = chunk::task_count(&setup.frames, chunk_frames)?;
     nephele::atomic::check_writable(&setup.dir)
         .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;

@@ -132,12 +132,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             setup.frames.start(),
             setup.frames.end()
         );
+        // A chunk of the validated range: only the frames change, no need to set up again.
         opts.frames = Some((*frames.start(), *frames.end()));
-        setup = scene::shot::shot_setup(&scene, &opts)?;
+        setup.frames = frames;
     }
     nephele::atomic::check_writable(&setup.dir)
         .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
-    let count = (setup.frames.end() - setup.frames.start() + 1) as u64;
+    let count = scene::chunk::frame_count(&setup.frames) as u64;
     let bar = nephele::progress::bar(&scene.name, count);
     let report = scene::render_shot(&scene, &opts, &mut |f| {
         bar.inc(1);

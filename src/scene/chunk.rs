@@ -125,7 +125,7 @@ pub fn index_from_env(
 }
 
 /// Frames in an inclusive range (0 when empty).
-fn frame_count(frames: &RangeInclusive<u32>) -> u32 {
+pub fn frame_count(frames: &RangeInclusive<u32>) -> u32 {
     if frames.is_empty() {
         0
     } else {

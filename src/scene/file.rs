@@ -295,13 +295,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         field: field.to_string(),
         message,
     };
-    let finite = |field: &str, v: &[f32]| {
-        if v.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err(bad(field, format!("must be finite, got {v:?}")))
-        }
-    };
+    let finite = |field: &str, v: &[f32]| check_finite(&bad, field, v);
     if s.shot.width == 0 || s.shot.height == 0 {
         return Err(bad(
             "shot",
@@ -402,19 +396,26 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     })
 }
 
+/// `v` all finite, else an error naming `field`.
+fn check_finite(
+    bad: &dyn Fn(&str, String) -> SceneError,
+    field: &str,
+    v: &[f32],
+) -> Result<(), SceneError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(bad(field, format!("must be finite, got {v:?}")))
+    }
+}
+
 /// `sun` and `sky`: finite values, angles and model parameters in range.
 fn validate_light(
     bad: &dyn Fn(&str, String) -> SceneError,
     sun: &Sun,
     sky: &Sky,
 ) -> Result<(), SceneError> {
-    let finite = |field: &str, v: &[f32]| {
-        if v.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err(bad(field, format!("must be finite, got {v:?}")))
-        }
-    };
+    let finite = |field: &str, v: &[f32]| check_finite(bad, field, v);
     finite("sun.direction", &sun.direction.to_array())?;
     finite("sun.color", &sun.color.to_array())?;
     finite("sun.azimuth_deg", &[sun.azimuth_deg])?;

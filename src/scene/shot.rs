@@ -228,11 +228,10 @@ pub fn render_shot(
                 .iter()
                 .all(|p| p.is_file())
     };
-    let todo: Vec<u32> = setup
-        .frames
-        .clone()
-        .filter(|&f| opts.stats || !done(f))
-        .collect();
+    // Each frame's files are looked for once: (frame, finished).
+    let frames: Vec<(u32, bool)> = setup.frames.clone().map(|f| (f, done(f))).collect();
+    // With statistics, finished frames are rendered again in memory (not written).
+    let render_it = |finished: bool| opts.stats || !finished;
     let mut report = ShotReport {
         output_dir: setup.dir.clone(),
         rendered: 0,
@@ -241,7 +240,7 @@ pub fn render_shot(
         timings: Timings::default(),
         stats: None,
     };
-    if !todo.is_empty() {
+    if frames.iter().any(|&(_, finished)| render_it(finished)) {
         let (model, origin) = timings.stage("target", || load_target(scene, &setup.cache_dir))?;
         report.target = Some(origin);
         let prep = timings.stage("plan", || prepare(scene, model))?;
@@ -249,8 +248,8 @@ pub fn render_shot(
         let basis = opts.stats.then(|| StatsBasis::new(&prep));
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
-        for frame in setup.frames.clone() {
-            if !todo.contains(&frame) {
+        for &(frame, finished) in &frames {
+            if !render_it(finished) {
                 report.skipped += 1;
                 on_frame(&skipped(frame, setup.total));
                 continue;
@@ -261,7 +260,7 @@ pub fn render_shot(
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
             let image = render::render_frame(&settings, &blobs);
             let rendered = Instant::now();
-            let write = !done(frame);
+            let write = !finished;
             if write {
                 let out = FrameOutput {
                     image: &image,
