@@ -14,6 +14,7 @@ use super::camera::{Frustum, Ray};
 use super::density::{DensityParams, Hit, density, iso_slope};
 use super::light_grid::{GridShape, LightGrid};
 use super::medium::Medium;
+use super::noise::Octaves;
 use super::settings::RenderSettings;
 use crate::blobby::{Blob, THRESHOLD};
 use crate::rng::{Stream, item_rng};
@@ -101,8 +102,7 @@ impl BlobMedium {
                 sigma: settings.cloud.density.max(0.0) / length,
                 edge: settings.cloud.edge.max(0.0) * length,
                 depth: noise.amplitude.max(0.0) * length,
-                octaves: noise.octaves.min(8),
-                phase: noise.evolve * settings.time,
+                octaves: Octaves::new(noise.octaves, noise.evolve * settings.time),
                 inv_threshold: (1.0 / THRESHOLD) as f32,
             },
             step: 0.0,

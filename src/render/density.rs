@@ -32,7 +32,7 @@
 
 use glam::Vec3A;
 
-use super::noise::erosion;
+use super::noise::{Octaves, erosion};
 
 /// Most blobs whose weights enter the noise blend at one sample; the strongest are kept (the
 /// field still sums all).
@@ -65,10 +65,8 @@ pub(super) struct DensityParams {
     pub(super) edge: f32,
     /// Erosion depth `E` (world units).
     pub(super) depth: f32,
-    /// Noise octaves.
-    pub(super) octaves: u32,
-    /// Noise evolution phase (noise units; 0 = frozen).
-    pub(super) phase: f32,
+    /// Noise octaves and their evolution (phase in noise units; 0 = frozen).
+    pub(super) octaves: Octaves,
     pub(super) inv_threshold: f32,
 }
 
@@ -172,7 +170,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
-                sum += w * erosion(h.no + h.nd * t, p.octaves, p.phase);
+                sum += w * erosion(h.no + h.nd * t, &p.octaves);
             }
         }
         (sum / wsum).clamp(0.0, 1.0)
@@ -201,8 +199,7 @@ mod tests {
             sigma: 10.0,
             edge: 0.01,
             depth: 0.05,
-            octaves: 3,
-            phase: 0.0,
+            octaves: Octaves::new(3, 0.0),
             inv_threshold: 1.0,
         };
         let e = p.depth;

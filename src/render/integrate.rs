@@ -79,17 +79,12 @@ fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium:
                     for x in x0..x1 {
                         let pixel = y as u64 * w as u64 + x as u64;
                         let mut rng = item_rng(seed, Stream::Render, pixel);
+                        let mut trace = |ray: &Ray, jitter: f32| {
+                            march::<M, SHADE>(medium, scratch, &shading, ray, jitter, optical_step)
+                        };
                         if samples == 1 {
                             let ray = cam.pixel_ray(x, y);
-                            let jitter: f32 = rng.random();
-                            out.push(march::<M, SHADE>(
-                                medium,
-                                scratch,
-                                &shading,
-                                &ray,
-                                jitter,
-                                optical_step,
-                            ));
+                            out.push(trace(&ray, rng.random()));
                             continue;
                         }
                         let mut acc = PixelResult {
@@ -97,7 +92,7 @@ fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium:
                             transmittance: 0.0,
                             depth: 0.0,
                         };
-                        let (mut depth_w, mut hits) = (0.0f32, 0u32);
+                        let mut depth_w = 0.0f32;
                         for k in 0..samples {
                             let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
                             let (u, v, jitter): (f32, f32, f32) =
@@ -106,27 +101,19 @@ fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium:
                                 x as f32 + (cx + u) / side as f32,
                                 y as f32 + (cy + v) / side as f32,
                             );
-                            let r = march::<M, SHADE>(
-                                medium,
-                                scratch,
-                                &shading,
-                                &ray,
-                                jitter,
-                                optical_step,
-                            );
+                            let r = trace(&ray, jitter);
                             acc.rgb += r.rgb;
                             acc.transmittance += r.transmittance;
                             if r.depth.is_finite() {
                                 let c = 1.0 - r.transmittance;
                                 acc.depth += r.depth * c;
                                 depth_w += c;
-                                hits += 1;
                             }
                         }
                         let inv = 1.0 / samples as f32;
                         acc.rgb *= inv;
                         acc.transmittance *= inv;
-                        acc.depth = if hits > 0 && depth_w > 0.0 {
+                        acc.depth = if depth_w > 0.0 {
                             acc.depth / depth_w
                         } else {
                             f32::INFINITY

@@ -94,30 +94,66 @@ pub fn billow(p: Vec3A) -> f32 {
     x * (2.0 - x)
 }
 
+/// Most octaves [`Octaves`] holds.
+pub const MAX_OCTAVES: usize = 8;
+
+/// The per-frame constants of [`erosion`]: each octave's evolution drift and weight, and their
+/// total weight, computed once instead of at every sample.
+#[derive(Clone, Copy, Debug)]
+pub struct Octaves {
+    n: usize,
+    drift: [Vec3A; MAX_OCTAVES],
+    weight: [f32; MAX_OCTAVES],
+    norm: f32,
+}
+
+impl Octaves {
+    /// `octaves` (at most [`MAX_OCTAVES`]) at evolution `phase`: each octave moves along its
+    /// own direction (slow evolution; 0 = frozen). Octave 0 and 1 weigh 1 and ½, the wisps
+    /// from octave 2 on 0.3, 0.15, …
+    pub fn new(octaves: u32, phase: f32) -> Self {
+        let n = (octaves as usize).min(MAX_OCTAVES);
+        let (mut drift, mut weight) = ([Vec3A::ZERO; MAX_OCTAVES], [0.0; MAX_OCTAVES]);
+        let (mut norm, mut wisp) = (0.0, 0.3f32);
+        for o in 0..n {
+            drift[o] = EVOLVE_DIR[o.min(2)] * (phase * (1.0 + 0.5 * o as f32));
+            weight[o] = match o {
+                0 => 1.0,
+                1 => 0.5,
+                _ => {
+                    wisp *= 0.5;
+                    2.0 * wisp
+                }
+            };
+            norm += weight[o];
+        }
+        Octaves {
+            n,
+            drift,
+            weight,
+            norm,
+        }
+    }
+}
+
 /// Edge erosion in `[0, 1]` at noise point `p`: 0 on the tops of the billows, 1 deep in the
-/// creases. Octave 0 and 1 are [`billow`]s (weights 1, ½), octave 2 and above wispy plain
-/// gradient noise `½ + ½n` (weights 0.3, 0.15, …); `octaves = 0` gives 0 (no erosion).
-/// `phase` moves each octave along its own direction (slow evolution; 0 = frozen).
+/// creases. Octave 0 and 1 are [`billow`]s, octave 2 and above wispy plain gradient noise
+/// `½ + ½n` (weights and drifts in [`Octaves`]); no octaves give 0 (no erosion).
 #[inline]
-pub fn erosion(p: Vec3A, octaves: u32, phase: f32) -> f32 {
-    let (mut sum, mut norm, mut wisp) = (0.0, 0.0, 0.3);
+pub fn erosion(p: Vec3A, oct: &Octaves) -> f32 {
+    let mut sum = 0.0;
     let mut q = p;
-    for o in 0..octaves {
-        let drift = EVOLVE_DIR[(o as usize).min(2)] * (phase * (1.0 + 0.5 * o as f32));
-        let (h, w) = match o {
-            0 => (billow(q + drift), 1.0),
-            1 => (billow(q + drift), 0.5),
-            _ => {
-                wisp *= 0.5;
-                (0.5 + 0.5 * gradient_noise(q + drift), 2.0 * wisp)
-            }
+    for o in 0..oct.n {
+        let h = if o < 2 {
+            billow(q + oct.drift[o])
+        } else {
+            0.5 + 0.5 * gradient_noise(q + oct.drift[o])
         };
-        sum += w * h;
-        norm += w;
+        sum += oct.weight[o] * h;
         q = q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
     }
-    if norm > 0.0 {
-        (1.0 - sum / norm).clamp(0.0, 1.0)
+    if oct.norm > 0.0 {
+        (1.0 - sum / oct.norm).clamp(0.0, 1.0)
     } else {
         0.0
     }
@@ -135,7 +171,7 @@ mod tests {
         for i in 0..n {
             let t = i as f32;
             let p = Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011);
-            let v = erosion(p, 3, 0.0);
+            let v = erosion(p, &Octaves::new(3, 0.0));
             lo = lo.min(v);
             hi = hi.max(v);
             sum += v as f64;
@@ -146,15 +182,23 @@ mod tests {
         assert!(lo >= 0.0 && hi <= 1.0 && hi - lo > 0.6, "range {lo}..{hi}");
         assert!(mean > 0.2 && mean < 0.6, "mean {mean}");
         assert!(sd > 0.08 && sd < 0.4, "sd {sd}");
-        assert_eq!(erosion(Vec3A::ONE, 0, 0.0), 0.0);
+        assert_eq!(erosion(Vec3A::ONE, &Octaves::new(0, 0.0)), 0.0);
     }
 
     #[test]
     fn erosion_is_continuous_and_evolves() {
         let p = Vec3A::new(1.234, 5.678, -9.1);
         let e = Vec3A::splat(1e-4);
-        assert!((erosion(p, 3, 0.0) - erosion(p + e, 3, 0.0)).abs() < 1e-2);
-        assert!((erosion(p, 3, 0.0) - erosion(p, 3, 1e-4)).abs() < 1e-2);
-        assert_ne!(erosion(p, 3, 0.0), erosion(p, 3, 0.37));
+        assert!(
+            (erosion(p, &Octaves::new(3, 0.0)) - erosion(p + e, &Octaves::new(3, 0.0))).abs()
+                < 1e-2
+        );
+        assert!(
+            (erosion(p, &Octaves::new(3, 0.0)) - erosion(p, &Octaves::new(3, 1e-4))).abs() < 1e-2
+        );
+        assert_ne!(
+            erosion(p, &Octaves::new(3, 0.0)),
+            erosion(p, &Octaves::new(3, 0.37))
+        );
     }
 }
