@@ -404,7 +404,7 @@ fn owners(clusters: &[Cluster], n: usize) -> Vec<usize> {
 
 /// Equivalent radius of a blob's ellipsoid (the sphere of equal volume).
 pub(crate) fn equivalent_radius(b: &Blob) -> f64 {
-    (b.semi_axes.x * b.semi_axes.y * b.semi_axes.z).abs().cbrt()
+    b.semi_axes.element_product().abs().cbrt()
 }
 
 /// Set a cluster's direction, step and jitter box (see the module doc for the rules).

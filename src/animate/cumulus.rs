@@ -53,9 +53,9 @@ pub fn cumulus() -> BlobModel {
     }
     // Largest first, like a decomposition's selection order.
     blobs.sort_by(|a, b| {
-        let va = a.semi_axes.x * a.semi_axes.y * a.semi_axes.z;
-        let vb = b.semi_axes.x * b.semi_axes.y * b.semi_axes.z;
-        vb.total_cmp(&va)
+        b.semi_axes
+            .element_product()
+            .total_cmp(&a.semi_axes.element_product())
     });
     let bounds = super::blob_bounds(&blobs);
     BlobModel {

@@ -59,6 +59,43 @@ pub(crate) fn invalid(field: &str, message: impl Into<String>) -> AnimateError {
     }
 }
 
+/// Check that `animation.NAME` is a finite number of seconds ≥ 0.
+pub(crate) fn check_seconds(name: &str, v: f64) -> Result<(), AnimateError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            &format!("animation.{name}"),
+            format!("must be a finite number of seconds ≥ 0, got {v}"),
+        ))
+    }
+}
+
+/// Check that `animation.NAME` is a fraction in `[0, max]`.
+pub(crate) fn check_fraction(name: &str, v: f64, max: f64) -> Result<(), AnimateError> {
+    if v.is_finite() && (0.0..=max).contains(&v) {
+        Ok(())
+    } else {
+        Err(invalid(
+            &format!("animation.{name}"),
+            format!("must be a fraction in [0, {max}], got {v}"),
+        ))
+    }
+}
+
+/// A round blob of radius `r` at `c` with `A = 1` (so `B = 2`), for the stage's unit tests.
+#[cfg(test)]
+pub(crate) fn sphere_blob(c: DVec3, r: f64) -> Blob {
+    Blob::from_ellipsoid(
+        &crate::geometry::Ellipsoid {
+            center: c,
+            rotation: DQuat::IDENTITY,
+            semi_axes: DVec3::splat(r),
+        },
+        1.0,
+    )
+}
+
 /// One animation scheme with its settings (the scene file's `animation` field).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

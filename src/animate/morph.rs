@@ -20,7 +20,9 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::{AnimateError, Timeline, blend_shape, blob_bounds, invalid, smoothstep};
+use super::{
+    AnimateError, Timeline, blend_shape, blob_bounds, check_fraction, check_seconds, smoothstep,
+};
 use crate::blobby::Blob;
 
 /// Settings of the morph scheme. `from` is read by the scene (any target: a model file, a
@@ -54,23 +56,9 @@ fn default_hold() -> f64 {
 impl MorphConfig {
     /// Check ranges; errors name the field as `animation.NAME`.
     pub fn validate(&self) -> Result<(), AnimateError> {
-        if !(self.stagger.is_finite() && (0.0..=0.9).contains(&self.stagger)) {
-            return Err(invalid(
-                "animation.stagger",
-                format!("must be a fraction in [0, 0.9], got {}", self.stagger),
-            ));
-        }
-        for (name, v) in [
-            ("lead_seconds", self.lead_seconds),
-            ("hold_seconds", self.hold_seconds),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(invalid(
-                    &format!("animation.{name}"),
-                    format!("must be a finite number of seconds ≥ 0, got {v}"),
-                ));
-            }
-        }
+        check_fraction("stagger", self.stagger, 0.9)?;
+        check_seconds("lead_seconds", self.lead_seconds)?;
+        check_seconds("hold_seconds", self.hold_seconds)?;
         Ok(())
     }
 }

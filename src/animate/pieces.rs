@@ -39,16 +39,23 @@ pub(crate) fn nearest_blob(blobs: &[Blob], candidates: &[usize], x: DVec3) -> Op
 pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold: f64) -> usize {
     // Only blobs whose centre is inside the cluster's solid show; the others (below the
     // iso-level even with their neighbours) are left alone.
-    let cluster: Vec<Blob> = members.iter().map(|&i| blobs[i]).collect();
-    let field = BlobField::new(&cluster, threshold);
+    let cluster_field = |blobs: &[Blob]| {
+        BlobField::new(
+            &members.iter().map(|&k| blobs[k]).collect::<Vec<_>>(),
+            threshold,
+        )
+    };
+    let mut field = cluster_field(blobs);
     let shown: Vec<usize> = members
         .iter()
         .copied()
         .filter(|&i| field.value(blobs[i].center) >= 0.0)
         .collect();
     let Some(&root) = shown.iter().max_by(|&&a, &&b| {
-        let va = blobs[a].semi_axes.x * blobs[a].semi_axes.y * blobs[a].semi_axes.z;
-        let vb = blobs[b].semi_axes.x * blobs[b].semi_axes.y * blobs[b].semi_axes.z;
+        let (va, vb) = (
+            blobs[a].semi_axes.element_product(),
+            blobs[b].semi_axes.element_product(),
+        );
         va.total_cmp(&vb).then(b.cmp(&a))
     }) else {
         return 0;
@@ -57,8 +64,7 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
     let mut left: Vec<usize> = shown.iter().copied().filter(|&i| i != root).collect();
     let mut moved = 0;
     while !left.is_empty() {
-        let cluster: Vec<Blob> = members.iter().map(|&i| blobs[i]).collect();
-        let field = BlobField::new(&cluster, threshold);
+        // `field` is the cluster's as it stands: rebuilt only when a blob moves.
         let before = left.len();
         left.retain(|&i| {
             let mate = nearest_blob(blobs, &joined, blobs[i].center).expect("root joined");
@@ -80,9 +86,8 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
         for _ in 0..8 {
             let mid = 0.5 * (lo + hi);
             blobs[i].center = from.lerp(to, mid);
-            let cluster: Vec<Blob> = members.iter().map(|&k| blobs[k]).collect();
-            let field = BlobField::new(&cluster, threshold);
-            if segment_inside(|x| field.value(x), blobs[i].center, to) {
+            let trial = cluster_field(blobs);
+            if segment_inside(|x| trial.value(x), blobs[i].center, to) {
                 hi = mid;
             } else {
                 lo = mid;
@@ -92,6 +97,7 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
         blobs[i].center = from.lerp(to, hi + NECK_MARGIN * (1.0 - hi));
         joined.push(i);
         moved += 1;
+        field = cluster_field(blobs);
     }
     moved
 }
@@ -99,17 +105,7 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DQuat;
-
-    fn sphere(c: DVec3, r: f64) -> Blob {
-        Blob {
-            center: c,
-            rotation: DQuat::IDENTITY,
-            semi_axes: DVec3::splat(r),
-            a: 1.0,
-            b: 2.0,
-        }
-    }
+    use crate::animate::sphere_blob as sphere;
 
     #[test]
     fn a_blob_flying_alone_is_pulled_back_until_it_joins() {

@@ -29,11 +29,16 @@ impl VisibleVolume {
     /// Share of the visible cells held by the largest component (1 when nothing is visible, so
     /// an empty frame never fails a "one piece" check).
     pub fn largest_share(&self) -> f64 {
-        if self.voxels == 0 {
-            1.0
-        } else {
-            self.largest as f64 / self.voxels as f64
-        }
+        share(self.largest, self.voxels)
+    }
+}
+
+/// `part / whole`, or 1 when `whole` is 0 (an empty frame is "one piece").
+fn share(part: usize, whole: usize) -> f64 {
+    if whole == 0 {
+        1.0
+    } else {
+        part as f64 / whole as f64
     }
 }
 
@@ -164,11 +169,7 @@ pub struct Coverage {
 impl Coverage {
     /// Share of the covered pixels in the largest component (1 when nothing is covered).
     pub fn largest_share(&self) -> f64 {
-        if self.pixels == 0 {
-            1.0
-        } else {
-            self.largest as f64 / self.pixels as f64
-        }
+        share(self.largest, self.pixels)
     }
 }
 
@@ -192,17 +193,7 @@ pub fn coverage(alpha: &[f32], width: usize, height: usize, level: f32) -> Cover
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DQuat;
-
-    fn sphere(c: DVec3, r: f64) -> Blob {
-        Blob {
-            center: c,
-            rotation: DQuat::IDENTITY,
-            semi_axes: DVec3::splat(r),
-            a: 1.0,
-            b: 2.0,
-        }
-    }
+    use crate::animate::sphere_blob as sphere;
 
     #[test]
     fn two_apart_spheres_are_two_components_of_the_right_volume() {

@@ -57,7 +57,7 @@ use serde::{Deserialize, Serialize};
 
 use super::pieces::nearest_blob;
 use super::stats::{Lattice, visible_volume};
-use super::{AnimateError, Timeline, blob_bounds, invalid, lerp, smoothstep};
+use super::{AnimateError, Timeline, blob_bounds, check_fraction, check_seconds, lerp, smoothstep};
 use crate::blobby::Blob;
 
 mod order;
@@ -134,24 +134,10 @@ impl Default for DiffusionConfig {
 impl DiffusionConfig {
     /// Check ranges; errors name the field as `animation.NAME`.
     pub fn validate(&self) -> Result<(), AnimateError> {
-        for (name, v) in [
-            ("grow_seconds", self.grow_seconds),
-            ("final_grow_seconds", self.final_grow_seconds),
-            ("hold_seconds", self.hold_seconds),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(invalid(
-                    &format!("animation.{name}"),
-                    format!("must be a finite number of seconds ≥ 0, got {v}"),
-                ));
-            }
-        }
-        if !(self.category_ii.is_finite() && (0.0..=1.0).contains(&self.category_ii)) {
-            return Err(invalid(
-                "animation.category_ii",
-                format!("must be a fraction in [0, 1], got {}", self.category_ii),
-            ));
-        }
+        check_seconds("grow_seconds", self.grow_seconds)?;
+        check_seconds("final_grow_seconds", self.final_grow_seconds)?;
+        check_seconds("hold_seconds", self.hold_seconds)?;
+        check_fraction("category_ii", self.category_ii, 1.0)?;
         Ok(())
     }
 }
