@@ -13,6 +13,9 @@
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
 //! duck's last frame).
 
+#[path = "mitsuba_support/grid_medium.rs"]
+mod grid_medium;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -104,11 +107,14 @@ fn write_inputs(
     let blobs = prep.plan.frame(k as usize);
     let mut s = shot::frame_settings(&scene, &prep, &setup, k, false);
     if let Ok(q) = std::env::var("NEPHELE_MITSUBA_QUALITY") {
-        // Experiments: "shadow_grid,optical_step,samples".
+        // Experiments: "shadow_grid,optical_step,samples[,step_scale]".
         let v: Vec<f32> = q.split(',').map(|x| x.parse().unwrap()).collect();
         s.quality.shadow_grid = v[0] as u32;
         s.quality.optical_step = v[1];
         s.quality.samples = v[2] as u32;
+        if let Some(&step) = v.get(3) {
+            s.quality.step_scale = step;
+        }
     }
     if std::env::var("NEPHELE_MITSUBA_BLACK_SKY").is_ok() {
         // Not exactly 0: Mitsuba's envmap sampling needs some light.
@@ -118,12 +124,28 @@ fn write_inputs(
         };
     }
     std::fs::create_dir_all(dir).unwrap();
+    // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
+    let m = BlobMedium::new(&s, &blobs);
+    let (lo, hi) = m.bounds().expect("a live cloud");
+    let voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
+    let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
+    nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
+    // Diagnosis: nephele's integrator on Mitsuba's very grid, light depths marched exactly.
+    let dense = std::env::var("NEPHELE_MITSUBA_FROM_GRID").is_ok().then(|| {
+        let d = grid_medium::DenseGrid::new(&grid, s.sun.travel_dir().into());
+        match std::env::var("NEPHELE_MITSUBA_FROM_GRID").unwrap().parse() {
+            Ok(res) => d.with_light_grid(res),
+            Err(_) => d,
+        }
+    });
     let mut times = [0.0; 2];
     for (idx, ms) in [(0, false), (1, true)] {
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
-        let m = BlobMedium::new(&s, &blobs);
-        let f = render_medium(&s, &m);
+        let f = match &dense {
+            Some(d) => render_medium(&s, d),
+            None => render_medium(&s, &BlobMedium::new(&s, &blobs)),
+        };
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"
@@ -132,12 +154,6 @@ fn write_inputs(
         };
         write_f32(&dir.join(name), composite(&s, &f));
     }
-    // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
-    let m = BlobMedium::new(&s, &blobs);
-    let (lo, hi) = m.bounds().expect("a live cloud");
-    let voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
-    let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
-    nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
     let (sw, sh) = (512, 256);
     write_f32(&dir.join("sky.f32"), sky_map(&s, sw, sh));
     let sun_dir = s.sun.travel_dir();
@@ -273,7 +289,11 @@ fn mitsuba_full_comparison() {
     let dir = std::env::temp_dir().join(
         std::env::var("NEPHELE_MITSUBA_DIR").unwrap_or_else(|_| "nephele-mitsuba-full".into()),
     );
-    let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), 256, &dir);
+    let grid_res = std::env::var("NEPHELE_MITSUBA_GRID")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(256);
+    let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), grid_res, &dir);
     eprintln!("nephele: single scattering {ss:.3} s, with the MS approximation {ms:.3} s");
     let picture = repo().join("renders/mitsuba-comparison.png");
     let json = compare(

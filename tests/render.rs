@@ -746,7 +746,7 @@ fn light_grid_against_exact_march() {
                     t += step;
                 }
             }
-            let g = m.light_depths(p)[0] as f64;
+            let g = m.light_depths(p).sun as f64;
             te += sigma0 as f64 * (-tau).exp();
             tg += sigma0 as f64 * (-g).exp();
             wsum += sigma0 as f64;

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::camera::{Frustum, Ray};
 use super::density::{DensityParams, Hit, density, iso_slope};
 use super::light_grid::{GridShape, LightGrid};
-use super::medium::Medium;
+use super::medium::{LightDepths, Medium};
 use super::noise::Octaves;
 use super::settings::RenderSettings;
 use crate::blobby::{Blob, THRESHOLD};
@@ -330,8 +330,10 @@ impl Medium for BlobMedium {
     }
 
     #[inline]
-    fn light_depths(&self, x: Vec3A) -> [f32; 3] {
-        self.grid.as_ref().map_or([0.0; 3], |g| g.lookup(x))
+    fn light_depths(&self, x: Vec3A) -> LightDepths {
+        self.grid
+            .as_ref()
+            .map_or(LightDepths::ZERO, |g| g.lookup(x))
     }
 
     fn step(&self) -> f32 {

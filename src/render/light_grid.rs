@@ -1,9 +1,9 @@
-//! The per-frame light-transmittance grid: optical depth toward the sun, straight up and down on the
-//! nodes of a regular grid over the cloud, so shading a march sample costs one trilinear lookup
-//! instead of a secondary march.
+//! The per-frame light-transmittance grid: optical depth toward the sun and toward each sky
+//! cell ([`super::sky_light`]) on the nodes of a regular grid over the cloud, so shading a march
+//! sample costs one trilinear lookup instead of secondary marches.
 //!
 //! In: extinction `σ_t` sampled on the grid nodes (filled by the medium) and the sun direction.
-//! Out: [`LightGrid::lookup`] → `[τ_sun, τ_up, τ_down]` anywhere (clamped to the grid).
+//! Out: [`LightGrid::lookup`] → [`LightDepths`] anywhere (clamped to the grid).
 //!
 //! Each depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
@@ -11,6 +11,10 @@
 //! The repeated bilinear interpolation blurs shadows by about a cell, which suits clouds.
 
 use glam::Vec3A;
+use rayon::prelude::*;
+
+use super::medium::LightDepths;
+use super::sky_light::{SKY_DIRECTIONS, directions};
 
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.
@@ -55,28 +59,39 @@ impl GridShape {
     }
 }
 
-/// Optical depths `[toward the sun, straight up, straight down]` on the nodes of a [`GridShape`].
+/// Number of depths stored per node: the sun, then the sky cells.
+const CHANNELS: usize = 1 + SKY_DIRECTIONS;
+
+/// Optical depths toward the sun and each sky cell on the nodes of a [`GridShape`].
 #[derive(Clone, Debug)]
 pub struct LightGrid {
     shape: GridShape,
     inv_h: f32,
-    tau: Vec<[f32; 3]>,
+    /// `CHANNELS` depths per node, node-major.
+    tau: Vec<f32>,
 }
 
 impl LightGrid {
     /// Sweep the depths from `sigma` (extinction per node, `shape.len()` values) for sunlight
-    /// travelling along `sun_dir` (unit).
+    /// travelling along `sun_dir` (unit) and the sky cells of [`directions`]; the sweeps run in
+    /// parallel.
     pub fn build(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
-        let sun = sweep(&shape, sigma, sun_dir);
-        let up = sweep(&shape, sigma, Vec3A::NEG_Y);
-        let down = sweep(&shape, sigma, Vec3A::Y);
-        let tau = sun
-            .into_iter()
-            .zip(up)
-            .zip(down)
-            .map(|((s, u), d)| [s, u, d])
+        let sky = directions();
+        // Light from a sky cell travels from the cell's direction toward the cloud.
+        let sweeps: Vec<Vec<f32>> = (0..CHANNELS)
+            .into_par_iter()
+            .map(|c| {
+                let dir = if c == 0 { sun_dir } else { -sky[c - 1] };
+                sweep(&shape, sigma, dir)
+            })
             .collect();
+        let mut tau = vec![0.0f32; shape.len() * CHANNELS];
+        for (c, depths) in sweeps.iter().enumerate() {
+            for (node, &d) in depths.iter().enumerate() {
+                tau[node * CHANNELS + c] = d;
+            }
+        }
         LightGrid {
             inv_h: 1.0 / shape.h,
             shape,
@@ -89,10 +104,10 @@ impl LightGrid {
         &self.shape
     }
 
-    /// Trilinear `[τ_sun, τ_up, τ_down]` at `x` (clamped to the grid; the grid's border nodes are
-    /// outside the cloud, so points outside see the border values).
+    /// Trilinear depths at `x` (clamped to the grid; the grid's border nodes are outside the
+    /// cloud, so points outside see the border values).
     #[inline]
-    pub fn lookup(&self, x: Vec3A) -> [f32; 3] {
+    pub fn lookup(&self, x: Vec3A) -> LightDepths {
         let [nx, ny, nz] = self.shape.dims;
         let g = ((x - self.shape.origin) * self.inv_h).clamp(
             Vec3A::ZERO,
@@ -103,19 +118,27 @@ impl LightGrid {
         let (i, j, k) = (f.x as usize, f.y as usize, f.z as usize);
         let i00 = i + nx * (j + ny * k);
         let (sy, sz) = (nx, nx * ny);
-        let t = &self.tau;
-        let lerp2 = |a: [f32; 3], b: [f32; 3], s: f32| {
-            [
-                a[0] + s * (b[0] - a[0]),
-                a[1] + s * (b[1] - a[1]),
-                a[2] + s * (b[2] - a[2]),
-            ]
-        };
-        let x00 = lerp2(t[i00], t[i00 + 1], w.x);
-        let x10 = lerp2(t[i00 + sy], t[i00 + sy + 1], w.x);
-        let x01 = lerp2(t[i00 + sz], t[i00 + sz + 1], w.x);
-        let x11 = lerp2(t[i00 + sy + sz], t[i00 + sy + sz + 1], w.x);
-        lerp2(lerp2(x00, x10, w.y), lerp2(x01, x11, w.y), w.z)
+        let corners = [
+            (i00, (1.0 - w.x) * (1.0 - w.y) * (1.0 - w.z)),
+            (i00 + 1, w.x * (1.0 - w.y) * (1.0 - w.z)),
+            (i00 + sy, (1.0 - w.x) * w.y * (1.0 - w.z)),
+            (i00 + sy + 1, w.x * w.y * (1.0 - w.z)),
+            (i00 + sz, (1.0 - w.x) * (1.0 - w.y) * w.z),
+            (i00 + sz + 1, w.x * (1.0 - w.y) * w.z),
+            (i00 + sy + sz, (1.0 - w.x) * w.y * w.z),
+            (i00 + sy + sz + 1, w.x * w.y * w.z),
+        ];
+        let mut acc = [0.0f32; CHANNELS];
+        for (node, wc) in corners {
+            let t = &self.tau[node * CHANNELS..(node + 1) * CHANNELS];
+            for (a, &v) in acc.iter_mut().zip(t) {
+                *a += wc * v;
+            }
+        }
+        LightDepths {
+            sun: acc[0],
+            sky: std::array::from_fn(|c| acc[c + 1]),
+        }
     }
 }
 
@@ -211,17 +234,22 @@ mod tests {
         for sun in [Vec3A::NEG_Y, Vec3A::new(-0.4, -0.8, -0.3).normalize()] {
             let grid = ball_grid(sun);
             // Centre: the chord toward the sun is the radius; likewise straight up.
-            let [ts, tu, td] = grid.lookup(Vec3A::ZERO);
+            let c = grid.lookup(Vec3A::ZERO);
+            let (ts, tu, td) = (
+                c.sun,
+                c.sky[crate::render::sky_light::UP],
+                c.sky[crate::render::sky_light::DOWN],
+            );
             assert!((td / 3.0 - 1.0).abs() < 0.04, "τ_down at centre {td}");
             assert!((ts / 3.0 - 1.0).abs() < 0.04, "τ_sun at centre {ts}");
             assert!((tu / 3.0 - 1.0).abs() < 0.04, "τ_up at centre {tu}");
             // The point half-way toward the sun, and the antipode (full diameter minus ½).
-            let [ts, ..] = grid.lookup(-sun * 0.5);
+            let ts = grid.lookup(-sun * 0.5).sun;
             assert!((ts / 1.5 - 1.0).abs() < 0.06, "τ_sun half-way {ts}");
-            let [ts, ..] = grid.lookup(sun * 0.5);
+            let ts = grid.lookup(sun * 0.5).sun;
             assert!((ts / 4.5 - 1.0).abs() < 0.04, "τ_sun far side {ts}");
             // Outside on the sunny side nothing is in the way.
-            assert!(grid.lookup(-sun * 1.05)[0] < 0.05);
+            assert!(grid.lookup(-sun * 1.05).sun < 0.05);
         }
     }
 }

@@ -32,10 +32,11 @@ pub mod noise;
 pub mod output;
 pub mod settings;
 pub mod shading;
+pub mod sky_light;
 
 pub use blobs::{BlobMedium, ray_ellipsoid};
 pub use integrate::{render_medium, render_medium_unshaded};
-pub use medium::{Homogeneous, Medium, Shape};
+pub use medium::{Homogeneous, LightDepths, Medium, Shape};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
