@@ -130,22 +130,11 @@ fn write_inputs(
     let voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
     let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
     nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
-    // Diagnosis: nephele's integrator on Mitsuba's very grid, light depths marched exactly.
-    let dense = std::env::var("NEPHELE_MITSUBA_FROM_GRID").is_ok().then(|| {
-        let d = grid_medium::DenseGrid::new(&grid, s.sun.travel_dir().into());
-        match std::env::var("NEPHELE_MITSUBA_FROM_GRID").unwrap().parse() {
-            Ok(res) => d.with_light_grid(res),
-            Err(_) => d,
-        }
-    });
     let mut times = [0.0; 2];
     for (idx, ms) in [(0, false), (1, true)] {
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
-        let f = match &dense {
-            Some(d) => render_medium(&s, d),
-            None => render_medium(&s, &BlobMedium::new(&s, &blobs)),
-        };
+        let f = render_medium(&s, &BlobMedium::new(&s, &blobs));
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"
@@ -154,6 +143,19 @@ fn write_inputs(
         };
         write_f32(&dir.join(name), composite(&s, &f));
     }
+    // The light transport alone: nephele's integrator on Mitsuba's very grid, with a light grid
+    // of the frame's quality (or, with NEPHELE_MITSUBA_EXACT, depths marched exactly: slow).
+    s.cloud.multiple_scattering = false;
+    let dense = grid_medium::DenseGrid::new(&grid, s.sun.travel_dir().into());
+    let dense = if std::env::var("NEPHELE_MITSUBA_EXACT").is_ok() {
+        dense
+    } else {
+        dense.with_light_grid(s.quality.shadow_grid)
+    };
+    write_f32(
+        &dir.join("nephele_grid_ss.f32"),
+        composite(&s, &render_medium(&s, &dense)),
+    );
     let (sw, sh) = (512, 256);
     write_f32(&dir.join("sky.f32"), sky_map(&s, sw, sh));
     let sun_dir = s.sun.travel_dir();

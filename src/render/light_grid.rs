@@ -59,16 +59,18 @@ impl GridShape {
     }
 }
 
-/// Number of depths stored per node: the sun, then the sky cells.
-const CHANNELS: usize = 1 + SKY_DIRECTIONS;
-
-/// Optical depths toward the sun and each sky cell on the nodes of a [`GridShape`].
+/// Optical depths toward the sun on the nodes of a [`GridShape`], and toward each sky cell on
+/// a grid of twice the spacing (sky light comes from a broad source: its shadows are soft, and
+/// 26 sweeps at full resolution would cost more than the frame).
 #[derive(Clone, Debug)]
 pub struct LightGrid {
     shape: GridShape,
     inv_h: f32,
-    /// `CHANNELS` depths per node, node-major.
-    tau: Vec<f32>,
+    /// Depth toward the sun per node.
+    sun: Vec<f32>,
+    sky_shape: GridShape,
+    /// [`SKY_DIRECTIONS`] depths per coarse node, node-major.
+    sky: Vec<f32>,
 }
 
 impl LightGrid {
@@ -77,25 +79,29 @@ impl LightGrid {
     /// parallel.
     pub fn build(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
-        let sky = directions();
-        // Light from a sky cell travels from the cell's direction toward the cloud.
-        let sweeps: Vec<Vec<f32>> = (0..CHANNELS)
+        let (sky_shape, sky_sigma) = coarsen(&shape, sigma);
+        let dirs = directions();
+        // Channel 0 is the sun; light from a sky cell travels from the cell's direction.
+        let mut sweeps: Vec<Vec<f32>> = (0..=SKY_DIRECTIONS)
             .into_par_iter()
-            .map(|c| {
-                let dir = if c == 0 { sun_dir } else { -sky[c - 1] };
-                sweep(&shape, sigma, dir)
+            .map(|c| match c {
+                0 => sweep(&shape, sigma, sun_dir),
+                _ => sweep(&sky_shape, &sky_sigma, -dirs[c - 1]),
             })
             .collect();
-        let mut tau = vec![0.0f32; shape.len() * CHANNELS];
-        for (c, depths) in sweeps.iter().enumerate() {
+        let sun = std::mem::take(&mut sweeps[0]);
+        let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
+        for (c, depths) in sweeps[1..].iter().enumerate() {
             for (node, &d) in depths.iter().enumerate() {
-                tau[node * CHANNELS + c] = d;
+                sky[node * SKY_DIRECTIONS + c] = d;
             }
         }
         LightGrid {
             inv_h: 1.0 / shape.h,
             shape,
-            tau,
+            sun,
+            sky_shape,
+            sky,
         }
     }
 
@@ -104,42 +110,92 @@ impl LightGrid {
         &self.shape
     }
 
-    /// Trilinear depths at `x` (clamped to the grid; the grid's border nodes are outside the
-    /// cloud, so points outside see the border values).
+    /// Trilinear depths at `x` (clamped to the grids; their border nodes are outside the cloud,
+    /// so points outside see the border values).
     #[inline]
     pub fn lookup(&self, x: Vec3A) -> LightDepths {
-        let [nx, ny, nz] = self.shape.dims;
-        let g = ((x - self.shape.origin) * self.inv_h).clamp(
-            Vec3A::ZERO,
-            Vec3A::new(nx as f32 - 1.001, ny as f32 - 1.001, nz as f32 - 1.001),
-        );
-        let f = g.floor();
-        let w = g - f;
-        let (i, j, k) = (f.x as usize, f.y as usize, f.z as usize);
-        let i00 = i + nx * (j + ny * k);
-        let (sy, sz) = (nx, nx * ny);
-        let corners = [
-            (i00, (1.0 - w.x) * (1.0 - w.y) * (1.0 - w.z)),
-            (i00 + 1, w.x * (1.0 - w.y) * (1.0 - w.z)),
-            (i00 + sy, (1.0 - w.x) * w.y * (1.0 - w.z)),
-            (i00 + sy + 1, w.x * w.y * (1.0 - w.z)),
-            (i00 + sz, (1.0 - w.x) * (1.0 - w.y) * w.z),
-            (i00 + sz + 1, w.x * (1.0 - w.y) * w.z),
-            (i00 + sy + sz, (1.0 - w.x) * w.y * w.z),
-            (i00 + sy + sz + 1, w.x * w.y * w.z),
-        ];
-        let mut acc = [0.0f32; CHANNELS];
-        for (node, wc) in corners {
-            let t = &self.tau[node * CHANNELS..(node + 1) * CHANNELS];
-            for (a, &v) in acc.iter_mut().zip(t) {
-                *a += wc * v;
-            }
-        }
-        LightDepths {
-            sun: acc[0],
-            sky: std::array::from_fn(|c| acc[c + 1]),
+        let mut sun = [0.0f32; 1];
+        trilinear::<1>(&self.shape, self.inv_h, &self.sun, x, &mut sun);
+        let mut sky = [0.0f32; SKY_DIRECTIONS];
+        trilinear::<SKY_DIRECTIONS>(&self.sky_shape, 0.5 * self.inv_h, &self.sky, x, &mut sky);
+        LightDepths { sun: sun[0], sky }
+    }
+}
+
+/// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
+/// accumulated into `out`.
+#[inline]
+fn trilinear<const C: usize>(shape: &GridShape, inv_h: f32, v: &[f32], x: Vec3A, out: &mut [f32; C]) {
+    let [nx, ny, nz] = shape.dims;
+    let g = ((x - shape.origin) * inv_h).clamp(
+        Vec3A::ZERO,
+        Vec3A::new(nx as f32 - 1.001, ny as f32 - 1.001, nz as f32 - 1.001),
+    );
+    let f = g.floor();
+    let w = g - f;
+    let i00 = f.x as usize + nx * (f.y as usize + ny * f.z as usize);
+    let (sy, sz) = (nx, nx * ny);
+    let corners = [
+        (i00, (1.0 - w.x) * (1.0 - w.y) * (1.0 - w.z)),
+        (i00 + 1, w.x * (1.0 - w.y) * (1.0 - w.z)),
+        (i00 + sy, (1.0 - w.x) * w.y * (1.0 - w.z)),
+        (i00 + sy + 1, w.x * w.y * (1.0 - w.z)),
+        (i00 + sz, (1.0 - w.x) * (1.0 - w.y) * w.z),
+        (i00 + sz + 1, w.x * (1.0 - w.y) * w.z),
+        (i00 + sy + sz, (1.0 - w.x) * w.y * w.z),
+        (i00 + sy + sz + 1, w.x * w.y * w.z),
+    ];
+    for (node, wc) in corners {
+        for (a, &t) in out.iter_mut().zip(&v[node * C..(node + 1) * C]) {
+            *a += wc * t;
         }
     }
+}
+
+/// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`),
+/// with each coarse node's extinction the mean of the fine nodes within half a coarse cell
+/// (weights ½, 1, ½ per axis), so optical depths through it keep their value.
+fn coarsen(shape: &GridShape, sigma: &[f32]) -> (GridShape, Vec<f32>) {
+    let [nx, ny, nz] = shape.dims;
+    let dims = [nx.div_ceil(2) + 1, ny.div_ceil(2) + 1, nz.div_ceil(2) + 1];
+    let coarse = GridShape {
+        origin: shape.origin,
+        h: 2.0 * shape.h,
+        dims,
+    };
+    let mut out = vec![0.0f32; coarse.len()];
+    out.par_chunks_mut(dims[0] * dims[1])
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+                    for dk in -1i64..=1 {
+                        for dj in -1i64..=1 {
+                            for di in -1i64..=1 {
+                                let (fi, fj, fk) =
+                                    (2 * i as i64 + di, 2 * j as i64 + dj, 2 * k as i64 + dk);
+                                if fi < 0 || fj < 0 || fk < 0 {
+                                    continue;
+                                }
+                                let (fi, fj, fk) = (fi as usize, fj as usize, fk as usize);
+                                if fi >= nx || fj >= ny || fk >= nz {
+                                    continue;
+                                }
+                                let w = [di, dj, dk]
+                                    .iter()
+                                    .map(|&d| if d == 0 { 1.0 } else { 0.5 })
+                                    .product::<f32>();
+                                sum += w * sigma[fi + nx * (fj + ny * fk)];
+                                wsum += w;
+                            }
+                        }
+                    }
+                    slice[i + dims[0] * j] = sum / wsum.max(1e-12);
+                }
+            }
+        });
+    (coarse, out)
 }
 
 /// Shift of the stored depths toward the light, in cells (see [`sweep`]).
