@@ -221,7 +221,6 @@ pub struct Shading {
     pub sky_down: Vec3A,
     /// The sky's single scattering, per cell.
     pub sky: SkyLight,
-    dome: SkyDome,
     /// `b^(octaves−1)`: the last octave's contribution weight.
     ms_weight_last: f32,
 }
@@ -260,7 +259,6 @@ impl Shading {
             sky_up: Vec3A::from(dome.upper_mean()),
             sky_down: Vec3A::from(dome.lower_mean()),
             sky: SkyLight::new(&dome, g),
-            dome,
             ms_weight_last: (1..octaves).fold(1.0, |b, _| b * MS_CONTRIBUTION),
         }
     }
@@ -292,7 +290,7 @@ impl Shading {
         if k <= 0.0 {
             return Vec3A::ZERO;
         }
-        Vec3A::from(self.dome.radiance(dir.into())) * k
+        self.sky.forward_radiance(dir) * k
     }
 
     /// In-scattered radiance per unit scattering coefficient at a point with optical depths
