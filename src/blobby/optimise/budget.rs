@@ -91,6 +91,11 @@ pub const NEGLIGIBLE: f64 = 0.002;
 /// Drop the dead blobs (`B = 0`) and their anchors, keeping the order of the rest.
 pub fn drop_dead(blobs: &mut Vec<Blob>, anchors: &mut Vec<Blob>) {
     let keep: Vec<bool> = blobs.iter().map(Blob::is_live).collect();
+    retain_kept(blobs, anchors, &keep);
+}
+
+/// Keep the blobs `i` with `keep[i]` and their anchors, in order.
+pub(super) fn retain_kept(blobs: &mut Vec<Blob>, anchors: &mut Vec<Blob>, keep: &[bool]) {
     let (mut a, mut b) = (keep.iter(), keep.iter());
     anchors.retain(|_| *a.next().unwrap_or(&false));
     blobs.retain(|_| *b.next().unwrap_or(&false));
@@ -154,7 +159,7 @@ impl Budget<'_> {
     }
 
     /// Add up to `count` blobs from the unused candidates at the model's worst shortfalls.
-    fn add_at_shortfalls(
+    pub(super) fn add_at_shortfalls(
         &self,
         blobs: &mut Vec<Blob>,
         used: &mut [bool],
@@ -190,7 +195,7 @@ fn closing_blob(e: &Ellipsoid, initial_a: f64, x: DVec3, f: f64) -> Blob {
 }
 
 /// Blobs from `first_new` on, and every blob whose support box overlaps one of theirs.
-fn overlapping(blobs: &[Blob], first_new: usize) -> Vec<bool> {
+pub(super) fn overlapping(blobs: &[Blob], first_new: usize) -> Vec<bool> {
     let boxes: Vec<_> = blobs.iter().map(Blob::support_bounds).collect();
     (0..blobs.len())
         .map(|i| i >= first_new || boxes[first_new..].iter().any(|b| b.overlaps(&boxes[i])))

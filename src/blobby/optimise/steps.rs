@@ -64,8 +64,9 @@ pub struct Optimised {
 /// blobs); the full problem on every blob; the drop of the blobs the passes switched off; the
 /// adaptive budget (their count and the selection's held-back share, see
 /// [`FullConfig::budget_reserve`], spent at the worst shortfalls from the unused candidates);
-/// final sweeps over every blob; the drop of negligible blobs. Deterministic at any thread
-/// count.
+/// final sweeps over every blob; in small models, swap rounds that move the least useful
+/// blobs to the worst shortfalls (see [`FullConfig::swap_rounds`]); the drop of negligible
+/// blobs. Deterministic at any thread count.
 pub fn optimise(how: &Optimisation, target: &Target, start: &Start, threshold: f64) -> Optimised {
     let held_back = match how {
         Optimisation::Full(_, full) => full.held_back(start.selected.len()),
@@ -147,5 +148,14 @@ fn full_steps(
         None,
         cfg.final_shape_prior,
     );
+    if cfg.is_small(start.selected.len()) {
+        budget.swap(
+            &problem,
+            blobs,
+            &mut anchors,
+            &mut used,
+            &target.samples.positions,
+        );
+    }
     drop_negligible(blobs, threshold);
 }

@@ -1,0 +1,128 @@
+//! Swap rounds: move the least useful blobs of a small model to where it falls shortest.
+//!
+//! The greedy selection picks blobs for the volume they cover and the adaptive budget adds
+//! blobs at the surface's worst shortfalls; neither revisits a blob once placed. After the
+//! final sweeps some blobs do little (a neighbour covers the same surface) while elsewhere the
+//! model still stops short of the mesh. A swap round drops the blobs whose removal raises the
+//! residual least, adds as many from the unused candidates at the worst shortfalls, re-fits
+//! around both and then every blob, and keeps the result only if the total residual fell.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::budget::{Budget, overlapping, retain_kept};
+use super::params::{Eval, Params};
+use super::sparsity::incidence;
+use super::{FullProblem, chunked, residual, sums_and_inverse_gradients};
+use crate::blobby::{Blob, BlobField};
+
+impl FullProblem<'_> {
+    /// Σ of every point's squared residual (surface and sign constraints, no shape prior),
+    /// in units of `D²`. Deterministic at any thread count (fixed chunks, summed in order).
+    pub(super) fn cost(&self, blobs: &[Blob]) -> f64 {
+        let field = BlobField::new(blobs, self.threshold);
+        let (sums, inv_g) = sums_and_inverse_gradients(&field, &self.pts, self.diag);
+        let parts = chunked(self.pts.x.len(), |range| {
+            range
+                .map(|k| {
+                    let big_f = sums[k] - self.threshold;
+                    let (r, _) = residual(self.pts.kind[k], big_f, inv_g[k], self.cfg);
+                    r * r
+                })
+                .sum::<f64>()
+        });
+        parts.iter().sum::<f64>() / (self.diag * self.diag)
+    }
+
+    /// Per blob, how much [`FullProblem::cost`] rises when that blob alone is removed (the
+    /// others and every point's `|∇F|` held): a blob whose neighbours cover its surface costs
+    /// little to lose.
+    pub(super) fn usefulness(&self, blobs: &[Blob]) -> Vec<f64> {
+        let field = BlobField::new(blobs, self.threshold);
+        let (sums, inv_g) = sums_and_inverse_gradients(&field, &self.pts, self.diag);
+        let (start, entries) = incidence(blobs, None, &self.pts);
+        (0..blobs.len())
+            .into_par_iter()
+            .map(|i| {
+                let e = Eval::new(&Params::from_blob(&blobs[i]));
+                let mut rise = 0.0;
+                for &k in &entries[start[i]..start[i + 1]] {
+                    let k = k as usize;
+                    let (kind, big_f) = (self.pts.kind[k], sums[k] - self.threshold);
+                    let (with, _) = residual(kind, big_f, inv_g[k], self.cfg);
+                    let without = big_f - e.value(self.pts.x[k]);
+                    let (without, _) = residual(kind, without, inv_g[k], self.cfg);
+                    rise += without * without - with * with;
+                }
+                rise
+            })
+            .collect()
+    }
+}
+
+impl Budget<'_> {
+    /// Run up to `cfg.swap_rounds` swap rounds of `cfg.swap_blobs` blobs each (see the module
+    /// docs) on `blobs` (with their `anchors`; `used` marks the candidates taken, and a
+    /// dropped blob's candidate stays taken so that a round never undoes the last). Stops at
+    /// the first round that does not lower [`FullProblem::cost`], restoring the model before
+    /// it.
+    pub fn swap(
+        &self,
+        problem: &FullProblem,
+        blobs: &mut Vec<Blob>,
+        anchors: &mut Vec<Blob>,
+        used: &mut [bool],
+        points: &[DVec3],
+    ) {
+        let cfg = problem.cfg;
+        if cfg.swap_blobs == 0 || blobs.len() <= cfg.swap_blobs {
+            return;
+        }
+        let mut cost = problem.cost(blobs);
+        for _ in 0..cfg.swap_rounds {
+            let before = (blobs.clone(), anchors.clone());
+            let dropped = drop_least_useful(problem, blobs, anchors, cfg.swap_blobs);
+            let kept = blobs.len();
+            self.add_at_shortfalls(blobs, used, points, cfg.swap_blobs, problem);
+            anchors.extend_from_slice(&blobs[kept..]);
+            // Re-fit the new blobs and every blob around them or around a dropped one.
+            let mut around = blobs.clone();
+            around.extend_from_slice(&dropped);
+            let active = &overlapping(&around, kept)[..blobs.len()];
+            let prior = cfg.final_shape_prior;
+            problem.optimise(blobs, anchors, cfg.swap_sweeps, Some(active), prior);
+            problem.optimise(blobs, anchors, cfg.swap_sweeps, None, prior);
+            let after = problem.cost(blobs);
+            if !(after < cost) {
+                (*blobs, *anchors) = before;
+                return;
+            }
+            cost = after;
+        }
+    }
+}
+
+/// Remove the `count` blobs of least [`FullProblem::usefulness`] (ties by index) and their
+/// anchors, keeping the order of the rest; returns the removed blobs.
+fn drop_least_useful(
+    problem: &FullProblem,
+    blobs: &mut Vec<Blob>,
+    anchors: &mut Vec<Blob>,
+    count: usize,
+) -> Vec<Blob> {
+    let useful = problem.usefulness(blobs);
+    let mut order: Vec<usize> = (0..blobs.len()).collect();
+    order.sort_by(|&a, &b| useful[a].total_cmp(&useful[b]).then(a.cmp(&b)));
+    let mut keep = vec![true; blobs.len()];
+    for &i in order.iter().take(count) {
+        keep[i] = false;
+    }
+    let dropped = blobs
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| !**k)
+        .map(|(b, _)| *b)
+        .collect();
+    retain_kept(blobs, anchors, &keep);
+    dropped
+}
