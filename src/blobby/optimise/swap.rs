@@ -126,3 +126,59 @@ fn drop_least_useful(
     retain_kept(blobs, anchors, &keep);
     dropped
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blobby::optimise::FullConfig;
+    use crate::geometry::Ellipsoid;
+    use crate::mesh::sample::SurfaceSamples;
+    use glam::DQuat;
+
+    fn unit_sphere_samples(m: usize) -> SurfaceSamples {
+        let mut s = SurfaceSamples::default();
+        for i in 0..m {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / m as f64;
+            let t = i as f64 * 2.399963;
+            let r = (1.0 - z * z).sqrt();
+            let n = DVec3::new(r * t.cos(), r * t.sin(), z);
+            s.positions.push(n);
+            s.normals.push(n);
+            s.mean_curvature.push(1.0);
+        }
+        s
+    }
+
+    fn sphere_blob(c: DVec3, r: f64) -> Blob {
+        let e = Ellipsoid {
+            center: c,
+            rotation: DQuat::IDENTITY,
+            semi_axes: DVec3::splat(r),
+        };
+        Blob::from_ellipsoid(&e, 1.0)
+    }
+
+    #[test]
+    fn the_blob_no_point_needs_is_the_least_useful_and_goes_first() {
+        let samples = unit_sphere_samples(2000);
+        let cfg = FullConfig::default();
+        let problem = FullProblem::new(&cfg, &samples, None, &[], 2.0 * 3f64.sqrt(), 1.0);
+        // The sphere's own blob, a small one deep inside it (no point in its support) and one
+        // bulging out of its side.
+        let mut blobs = vec![
+            sphere_blob(DVec3::ZERO, 1.0),
+            sphere_blob(DVec3::ZERO, 0.05),
+            sphere_blob(DVec3::new(0.9, 0.0, 0.0), 0.3),
+        ];
+        let blobs_before = blobs.clone();
+        let useful = problem.usefulness(&blobs);
+        assert_eq!(useful[1], 0.0, "{useful:?}");
+        assert!(useful[0] > 0.0, "losing the sphere costs: {useful:?}");
+        assert!(useful[2] < 0.0, "losing the bulge gains: {useful:?}");
+        let sphere = blobs[0];
+        let mut anchors = blobs.clone();
+        let dropped = drop_least_useful(&problem, &mut blobs, &mut anchors, 2);
+        assert_eq!(dropped, blobs_before[1..], "in model order");
+        assert_eq!((blobs, anchors), (vec![sphere], vec![sphere]));
+    }
+}
