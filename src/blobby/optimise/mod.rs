@@ -256,14 +256,24 @@ impl Sweep<'_> {
             let dr = p.log_r - anchor.log_r;
             [dc.x, dc.y, dc.z, dr.x, dr.y, dr.z].map(|v| v * w)
         };
-        // F without this blob, per incident point.
-        let rest: Vec<f64> = idx
-            .par_iter()
-            .map(|&k| {
-                let k = k as usize;
-                self.sums[k] - self.threshold - e0.value(self.pts.x[k])
-            })
-            .collect();
+        // F without this blob, per incident point, and the starting cost's chunk sums in the
+        // same pass (the same chunks and order as `cost`, so the same bits).
+        let start: Vec<(Vec<f64>, f64)> = chunked(idx.len(), |range| {
+            let mut sum = 0.0;
+            let rest = idx[range]
+                .iter()
+                .map(|&k| {
+                    let k = k as usize;
+                    let own = e0.value(self.pts.x[k]);
+                    let r = self.sums[k] - self.threshold - own;
+                    let (res, _) = residual(self.pts.kind[k], r + own, self.inv_g[k], self.cfg);
+                    sum += res * res;
+                    r
+                })
+                .collect();
+            (rest, sum)
+        });
+        let rest: Vec<f64> = start.iter().flat_map(|c| c.0.iter().copied()).collect();
         let cost = |p: &Params| -> f64 {
             let e = Eval::new(p);
             let parts = chunked(idx.len(), |range| {
@@ -279,7 +289,8 @@ impl Sweep<'_> {
             parts.iter().sum::<f64>() + prior(p).iter().map(|v| v * v).sum::<f64>()
         };
         let mut p = p0;
-        let mut c = cost(&p);
+        let mut c =
+            start.iter().map(|c| c.1).sum::<f64>() + prior(&p).iter().map(|v| v * v).sum::<f64>();
         let mut lambda = 1e-3;
         for _ in 0..self.cfg.iterations {
             let e = Eval::new(&p);
