@@ -275,6 +275,16 @@ fn hausdorff_pct(mesh: &nephele::mesh::Mesh, model: &nephele::blobby::BlobModel)
     compare(mesh, &surface, &MetroConfig::default()).hausdorff_pct
 }
 
+/// The duck fitted to 40 blobs with the full optimiser set to `full`.
+fn duck_at_40(full: nephele::blobby::optimise::FullConfig) -> nephele::pipeline::FitOutput {
+    let duck = nephele::mesh::load("builtin:duck").unwrap();
+    let cfg = FitConfig {
+        blobs: 40,
+        ..small(Optimisation::Full(FaithfulConfig::default(), full))
+    };
+    fit(&cfg, &duck).unwrap()
+}
+
 #[test]
 fn adaptive_budget_spends_the_freed_blobs_where_the_model_falls_short() {
     use nephele::blobby::optimise::FullConfig;
@@ -288,14 +298,7 @@ fn adaptive_budget_spends_the_freed_blobs_where_the_model_falls_short() {
             swap_rounds: 0,
             ..FullConfig::default()
         };
-        fit(
-            &FitConfig {
-                blobs: 40,
-                ..small(Optimisation::Full(FaithfulConfig::default(), full))
-            },
-            &duck,
-        )
-        .unwrap()
+        duck_at_40(full)
     };
     let (kept, spent) = (with(0), with(3));
     let (before, after) = (
@@ -328,15 +331,7 @@ fn swap_rounds_move_blobs_to_where_the_model_falls_short() {
             swap_rounds: rounds,
             ..FullConfig::default()
         };
-        let model = fit(
-            &FitConfig {
-                blobs: 40,
-                ..small(Optimisation::Full(FaithfulConfig::default(), full))
-            },
-            &duck,
-        )
-        .unwrap()
-        .model;
+        let model = duck_at_40(full).model;
         let surface = nephele::blobby::polygonize::polygonize(&model.field(), 120);
         (
             model.blobs.len(),

@@ -28,7 +28,7 @@ mod sparsity;
 mod steps;
 mod swap;
 
-pub use budget::{Budget, NEGLIGIBLE, drop_dead, drop_negligible};
+pub use budget::{Budget, NEGLIGIBLE, Placement, drop_negligible};
 pub use points::far_field_points;
 pub use steps::{Optimisation, Optimised, Start, Target, optimise};
 
@@ -543,10 +543,8 @@ mod tests {
         assert_eq!(all.held_back(10), 9, "one blob always starts");
     }
 
-    #[test]
-    fn fits_a_sphere_from_a_poor_start() {
-        // Samples of the unit sphere; one blob started off-centre, squashed and too weak.
-        let m = 2000;
+    /// `m` samples of the unit sphere (a Fibonacci spiral) with their normals.
+    pub(super) fn unit_sphere_samples(m: usize) -> SurfaceSamples {
         let mut s = SurfaceSamples::default();
         for i in 0..m {
             let z = 1.0 - 2.0 * (i as f64 + 0.5) / m as f64;
@@ -557,6 +555,13 @@ mod tests {
             s.normals.push(n);
             s.mean_curvature.push(1.0);
         }
+        s
+    }
+
+    #[test]
+    fn fits_a_sphere_from_a_poor_start() {
+        // Samples of the unit sphere; one blob started off-centre, squashed and too weak.
+        let s = unit_sphere_samples(2000);
         let mut blobs = vec![Blob {
             center: DVec3::new(0.1, -0.05, 0.0),
             rotation: DQuat::IDENTITY,

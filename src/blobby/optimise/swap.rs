@@ -7,10 +7,9 @@
 //! residual least, adds as many from the unused candidates at the worst shortfalls, re-fits
 //! around both and then every blob, and keeps the result only if the total residual fell.
 
-use glam::DVec3;
 use rayon::prelude::*;
 
-use super::budget::{Budget, overlapping, retain_kept};
+use super::budget::{Budget, Placement, overlapping};
 use super::params::{Eval, Params};
 use super::sparsity::incidence;
 use super::{FullProblem, chunked, residual, sums_and_inverse_gradients};
@@ -62,39 +61,31 @@ impl FullProblem<'_> {
 
 impl Budget<'_> {
     /// Run up to `cfg.swap_rounds` swap rounds of `cfg.swap_blobs` blobs each (see the module
-    /// docs) on `blobs` (with their `anchors`; `used` marks the candidates taken, and a
-    /// dropped blob's candidate stays taken so that a round never undoes the last). Stops at
-    /// the first round that does not lower [`FullProblem::cost`], restoring the model before
-    /// it.
-    pub fn swap(
-        &self,
-        problem: &FullProblem,
-        blobs: &mut Vec<Blob>,
-        anchors: &mut Vec<Blob>,
-        used: &mut [bool],
-        points: &[DVec3],
-    ) {
+    /// docs). A dropped blob's candidate stays used, so that a round never undoes the last.
+    /// Stops at the first round that does not lower [`FullProblem::cost`], restoring the blobs
+    /// from before it.
+    pub fn swap(&self, problem: &FullProblem, placed: &mut Placement) {
         let cfg = problem.cfg;
-        if cfg.swap_blobs == 0 || blobs.len() <= cfg.swap_blobs {
+        if cfg.swap_blobs == 0 || placed.blobs.len() <= cfg.swap_blobs {
             return;
         }
-        let mut cost = problem.cost(blobs);
+        let mut cost = problem.cost(&placed.blobs);
         for _ in 0..cfg.swap_rounds {
-            let before = (blobs.clone(), anchors.clone());
-            let dropped = drop_least_useful(problem, blobs, anchors, cfg.swap_blobs);
-            let kept = blobs.len();
-            self.add_at_shortfalls(blobs, used, points, cfg.swap_blobs, problem);
-            anchors.extend_from_slice(&blobs[kept..]);
+            let before = (placed.blobs.clone(), placed.anchors.clone());
+            let dropped = drop_least_useful(problem, placed, cfg.swap_blobs);
+            let kept = placed.blobs.len();
+            self.add_at_shortfalls(problem, placed, cfg.swap_blobs);
             // Re-fit the new blobs and every blob around them or around a dropped one.
-            let mut around = blobs.clone();
+            let mut around = placed.blobs.clone();
             around.extend_from_slice(&dropped);
-            let active = &overlapping(&around, kept)[..blobs.len()];
+            let active = &overlapping(&around, kept)[..placed.blobs.len()];
+            let (blobs, anchors) = (&mut placed.blobs, &placed.anchors);
             let prior = cfg.final_shape_prior;
             problem.optimise(blobs, anchors, cfg.swap_sweeps, Some(active), prior);
             problem.optimise(blobs, anchors, cfg.swap_sweeps, None, prior);
             let after = problem.cost(blobs);
             if !(after < cost) {
-                (*blobs, *anchors) = before;
+                (placed.blobs, placed.anchors) = before;
                 return;
             }
             cost = after;
@@ -104,26 +95,22 @@ impl Budget<'_> {
 
 /// Remove the `count` blobs of least [`FullProblem::usefulness`] (ties by index) and their
 /// anchors, keeping the order of the rest; returns the removed blobs.
-fn drop_least_useful(
-    problem: &FullProblem,
-    blobs: &mut Vec<Blob>,
-    anchors: &mut Vec<Blob>,
-    count: usize,
-) -> Vec<Blob> {
-    let useful = problem.usefulness(blobs);
-    let mut order: Vec<usize> = (0..blobs.len()).collect();
+fn drop_least_useful(problem: &FullProblem, placed: &mut Placement, count: usize) -> Vec<Blob> {
+    let useful = problem.usefulness(&placed.blobs);
+    let mut order: Vec<usize> = (0..useful.len()).collect();
     order.sort_by(|&a, &b| useful[a].total_cmp(&useful[b]).then(a.cmp(&b)));
-    let mut keep = vec![true; blobs.len()];
+    let mut keep = vec![true; useful.len()];
     for &i in order.iter().take(count) {
         keep[i] = false;
     }
-    let dropped = blobs
+    let dropped = placed
+        .blobs
         .iter()
         .zip(&keep)
         .filter(|(_, k)| !**k)
         .map(|(b, _)| *b)
         .collect();
-    retain_kept(blobs, anchors, &keep);
+    placed.retain(&keep);
     dropped
 }
 
@@ -131,23 +118,9 @@ fn drop_least_useful(
 mod tests {
     use super::*;
     use crate::blobby::optimise::FullConfig;
+    use crate::blobby::optimise::tests::unit_sphere_samples;
     use crate::geometry::Ellipsoid;
-    use crate::mesh::sample::SurfaceSamples;
-    use glam::DQuat;
-
-    fn unit_sphere_samples(m: usize) -> SurfaceSamples {
-        let mut s = SurfaceSamples::default();
-        for i in 0..m {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / m as f64;
-            let t = i as f64 * 2.399963;
-            let r = (1.0 - z * z).sqrt();
-            let n = DVec3::new(r * t.cos(), r * t.sin(), z);
-            s.positions.push(n);
-            s.normals.push(n);
-            s.mean_curvature.push(1.0);
-        }
-        s
-    }
+    use glam::{DQuat, DVec3};
 
     fn sphere_blob(c: DVec3, r: f64) -> Blob {
         let e = Ellipsoid {
@@ -165,7 +138,7 @@ mod tests {
         let problem = FullProblem::new(&cfg, &samples, None, &[], 2.0 * 3f64.sqrt(), 1.0);
         // The sphere's own blob, a small one deep inside it (no point in its support) and one
         // bulging out of its side.
-        let mut blobs = vec![
+        let blobs = vec![
             sphere_blob(DVec3::ZERO, 1.0),
             sphere_blob(DVec3::ZERO, 0.05),
             sphere_blob(DVec3::new(0.9, 0.0, 0.0), 0.3),
@@ -176,9 +149,14 @@ mod tests {
         assert!(useful[0] > 0.0, "losing the sphere costs: {useful:?}");
         assert!(useful[2] < 0.0, "losing the bulge gains: {useful:?}");
         let sphere = blobs[0];
-        let mut anchors = blobs.clone();
-        let dropped = drop_least_useful(&problem, &mut blobs, &mut anchors, 2);
+        let mut placed = Placement {
+            anchors: blobs.clone(),
+            blobs,
+            used: Vec::new(),
+        };
+        let dropped = drop_least_useful(&problem, &mut placed, 2);
         assert_eq!(dropped, blobs_before[1..], "in model order");
-        assert_eq!((blobs, anchors), (vec![sphere], vec![sphere]));
+        assert_eq!(placed.blobs, [sphere]);
+        assert_eq!(placed.anchors, [sphere]);
     }
 }
