@@ -20,8 +20,9 @@ pub use crate::blobby::optimise::Optimisation;
 /// config (a cached fit from an older build is then redone, not reused).
 /// History: 1 = inside/outside by parry's pseudo-normal test and a flood fill; 2 = by the
 /// generalized winding number; 3 = part of a small selection held back for the adaptive budget,
-/// six final sweeps under a weaker shape prior.
-pub const FIT_ALGORITHM_VERSION: u32 = 3;
+/// six final sweeps under a weaker shape prior; 4 = swap rounds in small models (the least
+/// useful blobs moved to the worst shortfalls).
+pub const FIT_ALGORITHM_VERSION: u32 = 4;
 
 /// Settings of a fit. Lengths are relative to the mesh's bounding-box diagonal. The defaults
 /// of the counts every front end offers (CLI, scene files) are the `DEFAULT_*` constants, and

@@ -88,12 +88,30 @@ pub fn nearest_unused(
 /// blobs (7–16 % of a fit's), and each costs bytes and render time for no visible surface.
 pub const NEGLIGIBLE: f64 = 0.002;
 
-/// Drop the dead blobs (`B = 0`) and their anchors, keeping the order of the rest.
-pub fn drop_dead(blobs: &mut Vec<Blob>, anchors: &mut Vec<Blob>) {
-    let keep: Vec<bool> = blobs.iter().map(Blob::is_live).collect();
-    let (mut a, mut b) = (keep.iter(), keep.iter());
-    anchors.retain(|_| *a.next().unwrap_or(&false));
-    blobs.retain(|_| *b.next().unwrap_or(&false));
+/// The blobs a full fit is placing, each with its anchor (where its shape prior holds it: its
+/// decomposition ellipsoid), and which decomposition candidates a blob has come from.
+pub struct Placement {
+    /// The blobs, in selection order and then in the order they were added.
+    pub blobs: Vec<Blob>,
+    /// `anchors[i]` is the blob `blobs[i]` started as.
+    pub anchors: Vec<Blob>,
+    /// Per candidate: a blob came from it (the budget takes only the others).
+    pub used: Vec<bool>,
+}
+
+impl Placement {
+    /// Keep the blobs `i` with `keep[i]` and their anchors, in order.
+    pub fn retain(&mut self, keep: &[bool]) {
+        let (mut a, mut b) = (keep.iter(), keep.iter());
+        self.anchors.retain(|_| *a.next().unwrap_or(&false));
+        self.blobs.retain(|_| *b.next().unwrap_or(&false));
+    }
+
+    /// Drop the dead blobs (`B = 0`) and their anchors, keeping the order of the rest.
+    pub fn drop_dead(&mut self) {
+        let keep: Vec<bool> = self.blobs.iter().map(Blob::is_live).collect();
+        self.retain(&keep);
+    }
 }
 
 /// Drop the blobs whose peak field is negligible (see [`NEGLIGIBLE`]) at iso-level
@@ -111,68 +129,57 @@ pub struct Budget<'a> {
     pub candidates: &'a [Ellipsoid],
     /// Starting `A` of a new blob.
     pub initial_a: f64,
+    /// The surface samples whose shortfalls the budget closes.
+    pub points: &'a [DVec3],
 }
 
 impl Budget<'_> {
     /// Fill the model up to `self.blobs` in `budget_rounds` rounds: each adds blobs from the
-    /// unused candidates (`used`) at the worst shortfalls of the surface samples `points`, then
-    /// re-fits the new blobs and those overlapping them for `budget_sweeps` sweeps and drops
-    /// any that died. `anchors` follows `blobs`.
-    pub fn spend(
-        &self,
-        problem: &FullProblem,
-        blobs: &mut Vec<Blob>,
-        anchors: &mut Vec<Blob>,
-        used: &mut [bool],
-        points: &[DVec3],
-    ) {
+    /// unused candidates at the worst shortfalls of the surface samples, then re-fits the new
+    /// blobs and those overlapping them for `budget_sweeps` sweeps and drops any that died.
+    pub fn spend(&self, problem: &FullProblem, placed: &mut Placement) {
         let cfg = problem.cfg;
         for round in 0..cfg.budget_rounds {
-            let spare = self.blobs.saturating_sub(blobs.len());
-            let before = blobs.len();
-            self.add_at_shortfalls(
-                blobs,
-                used,
-                points,
-                spare.div_ceil(cfg.budget_rounds - round),
-                problem,
-            );
-            if blobs.len() == before {
+            let spare = self.blobs.saturating_sub(placed.blobs.len());
+            let before = placed.blobs.len();
+            let count = spare.div_ceil(cfg.budget_rounds - round);
+            self.add_at_shortfalls(problem, placed, count);
+            if placed.blobs.len() == before {
                 break;
             }
-            anchors.extend_from_slice(&blobs[before..]);
-            let active = overlapping(blobs, before);
+            let active = overlapping(&placed.blobs, before);
             problem.optimise(
-                blobs,
-                anchors,
+                &mut placed.blobs,
+                &placed.anchors,
                 cfg.budget_sweeps,
                 Some(&active),
                 cfg.shape_prior,
             );
-            drop_dead(blobs, anchors);
+            placed.drop_dead();
         }
     }
 
-    /// Add up to `count` blobs from the unused candidates at the model's worst shortfalls.
-    fn add_at_shortfalls(
+    /// Add up to `count` blobs (with their anchors) from the unused candidates at the model's
+    /// worst shortfalls, marking their candidates used.
+    pub(super) fn add_at_shortfalls(
         &self,
-        blobs: &mut Vec<Blob>,
-        used: &mut [bool],
-        points: &[DVec3],
-        count: usize,
         problem: &FullProblem,
+        placed: &mut Placement,
+        count: usize,
     ) {
         if count == 0 {
             return;
         }
         let diag = problem.diag;
-        let field = BlobField::new(blobs, problem.threshold);
+        let field = BlobField::new(&placed.blobs, problem.threshold);
         let depth = problem.cfg.budget_shortfall * diag;
-        let worst = worst_shortfalls(&field, points, depth, 0.03 * diag, count, diag);
+        let worst = worst_shortfalls(&field, self.points, depth, 0.03 * diag, count, diag);
         let at: Vec<DVec3> = worst.iter().map(|w| w.0).collect();
-        for (i, k) in nearest_unused(self.candidates, used, &at, 0.05 * diag) {
+        for (i, k) in nearest_unused(self.candidates, &mut placed.used, &at, 0.05 * diag) {
             let (x, f) = worst[k];
-            blobs.push(closing_blob(&self.candidates[i], self.initial_a, x, f));
+            let blob = closing_blob(&self.candidates[i], self.initial_a, x, f);
+            placed.blobs.push(blob);
+            placed.anchors.push(blob);
         }
     }
 }
@@ -190,7 +197,7 @@ fn closing_blob(e: &Ellipsoid, initial_a: f64, x: DVec3, f: f64) -> Blob {
 }
 
 /// Blobs from `first_new` on, and every blob whose support box overlaps one of theirs.
-fn overlapping(blobs: &[Blob], first_new: usize) -> Vec<bool> {
+pub(super) fn overlapping(blobs: &[Blob], first_new: usize) -> Vec<bool> {
     let boxes: Vec<_> = blobs.iter().map(Blob::support_bounds).collect();
     (0..blobs.len())
         .map(|i| i >= first_new || boxes[first_new..].iter().any(|b| b.overlaps(&boxes[i])))

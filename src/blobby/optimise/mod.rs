@@ -13,20 +13,24 @@
 //! adaptive budget re-fits only around the blobs it adds).
 //!
 //! Files: `steps` is the entry (faithful pass, full problem, dead-blob drop, adaptive budget,
-//! final sweeps, negligible drop, in that order), `points` builds what is fitted, `params` is one blob's parametrisation and Jacobian,
-//! `sparsity` says which points each blob touches and which blobs can move together, `budget`
-//! adds blobs where the model falls short.
+//! final sweeps, swap rounds, negligible drop, in that order), `points` builds what is fitted,
+//! `params` is one blob's parametrisation and Jacobian, `sparsity` says which points each blob
+//! touches and which blobs can move together, `budget` adds blobs where the model falls short,
+//! `swap` moves the least useful blobs of a small model there, `config` holds the settings.
 //!
 //! Parametrisation: the field of a blob depends only on its influence radii `r = s·√(1+A)`:
 //! `f = B²(1 − |diag(1/r)·Rᵀ(x−c)|²)²`, so `A` is kept fixed and `s` is moved with `r`.
 
 mod budget;
+mod config;
 mod params;
 mod points;
 mod sparsity;
 mod steps;
+mod swap;
 
-pub use budget::{Budget, NEGLIGIBLE, drop_dead, drop_negligible};
+pub use budget::{Budget, NEGLIGIBLE, Placement, drop_negligible};
+pub use config::FullConfig;
 pub use points::far_field_points;
 pub use steps::{Optimisation, Optimised, Start, Target, optimise};
 
@@ -39,94 +43,6 @@ use crate::mesh::winding::WindingNumber;
 use params::{Eval, Params};
 use points::{Kind, Points, constraint_points};
 use sparsity::{colour, incidence};
-
-/// Settings of the full optimisation. Offsets are fractions of the diagonal `D`.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct FullConfig {
-    /// Gauss–Seidel sweeps over all blobs.
-    pub sweeps: usize,
-    /// LM iterations per blob per sweep.
-    pub iterations: usize,
-    /// Offsets along `−n` of the inside constraint points.
-    pub inside_offsets: Vec<f64>,
-    /// Offsets along `+n` of the outside constraint points.
-    pub outside_offsets: Vec<f64>,
-    /// Weight of a sign-constraint residual relative to a surface residual.
-    pub constraint_weight: f64,
-    /// Field margin `τ`: inside points want `F ≥ τ`, outside points `F ≤ −τ`.
-    pub margin: f64,
-    /// Use at most this many surface samples (evenly strided) per point kind.
-    pub max_points: usize,
-    /// Strength of the prior keeping radii and centres near the decomposition, as a length
-    /// in units of `D` (see `Sweep::improve`). 0.001: halving the earlier 0.002 (with the
-    /// final sweeps) lowered the mean error 8–20 % at 100 and 300 blobs on the bunny, horse and
-    /// armadillo; 0.0005 lowered it further but let blob tails overshoot armadillo's extremities
-    /// (max 1.5 → 1.9 % of D at 100 blobs).
-    pub shape_prior: f64,
-    /// Adaptive budget: rounds of adding blobs at the worst shortfalls, up to the blob count
-    /// asked for, each followed by `budget_sweeps` sweeps (0 = keep only the surviving blobs).
-    pub budget_rounds: usize,
-    /// Sweeps after each adaptive-budget round.
-    pub budget_sweeps: usize,
-    /// Sweeps over every blob after the adaptive budget. 6 against 2: mean −3 to −5 % at 100
-    /// blobs on the bunny, horse and armadillo; with `final_shape_prior`, −6 to −11 % at 300.
-    pub final_sweeps: usize,
-    /// The shape prior of the final sweeps (a continuation: the blobs settle under
-    /// `shape_prior`, then refine under this weaker one). 0.0005 throughout let blob tails
-    /// overshoot armadillo's extremities (max 1.5 → 1.9 % of D at 100 blobs); 0.0007 in the
-    /// final sweeps only lowered the mean 2–7 % at 100 blobs on the bunny, horse and armadillo,
-    /// the max moving by −0.15 to +0.11 % of D.
-    pub final_shape_prior: f64,
-    /// The adaptive budget adds blobs only where the model falls shorter than this. Shallower
-    /// gaps are the optimiser's job: blobs added there measured worse (they bulge out
-    /// elsewhere), so a model may end with fewer blobs than asked.
-    pub budget_shortfall: f64,
-    /// Share of the selection held back from the start and left to the adaptive budget, in
-    /// models of at most [`FullConfig::reserve_up_to`] blobs: the greedy coverage order spends
-    /// its last picks on volume, the budget on where the surface falls short (where it finds
-    /// no shortfall deep enough, the model keeps fewer blobs). 0.2 at 100 blobs: mean −5 % on
-    /// the bunny (its max 0.84 → 0.95 % of D), armadillo's max 1.58 → 1.34 % of D (with the
-    /// final sweeps below, whose weaker prior alone lets it pass 1.5 %).
-    pub budget_reserve: f64,
-    /// The largest model that holds back [`FullConfig::budget_reserve`]. At 300 blobs the
-    /// budget finds few shortfalls deep enough: held back, the bunny and horse ended with
-    /// 160–250 blobs and a higher mean (filling from the held-back picks did not recover it).
-    pub reserve_up_to: usize,
-}
-
-impl FullConfig {
-    /// How many of `selected` blobs the start holds back for the budget (see
-    /// [`FullConfig::budget_reserve`]); at least one blob always starts.
-    pub fn held_back(&self, selected: usize) -> usize {
-        if selected > self.reserve_up_to {
-            return 0;
-        }
-        let n = (selected as f64 * self.budget_reserve.clamp(0.0, 1.0)).round() as usize;
-        n.min(selected.saturating_sub(1))
-    }
-}
-
-impl Default for FullConfig {
-    fn default() -> Self {
-        FullConfig {
-            sweeps: 3,
-            iterations: 2,
-            inside_offsets: vec![0.005, 0.02],
-            outside_offsets: vec![0.005, 0.03, 0.1],
-            constraint_weight: 0.5,
-            margin: 0.05,
-            max_points: 12_000,
-            shape_prior: 0.001,
-            budget_rounds: 3,
-            budget_sweeps: 3,
-            final_sweeps: 6,
-            final_shape_prior: 0.0007,
-            budget_shortfall: 0.004,
-            budget_reserve: 0.2,
-            reserve_up_to: 150,
-        }
-    }
-}
 
 /// What happened during a full optimisation.
 #[derive(Clone, Debug, Default)]
@@ -231,14 +147,24 @@ impl Sweep<'_> {
             let dr = p.log_r - anchor.log_r;
             [dc.x, dc.y, dc.z, dr.x, dr.y, dr.z].map(|v| v * w)
         };
-        // F without this blob, per incident point.
-        let rest: Vec<f64> = idx
-            .par_iter()
-            .map(|&k| {
-                let k = k as usize;
-                self.sums[k] - self.threshold - e0.value(self.pts.x[k])
-            })
-            .collect();
+        // F without this blob, per incident point, and the starting cost's chunk sums in the
+        // same pass (the same chunks and order as `cost`, so the same bits).
+        let start: Vec<(Vec<f64>, f64)> = chunked(idx.len(), |range| {
+            let mut sum = 0.0;
+            let rest = idx[range]
+                .iter()
+                .map(|&k| {
+                    let k = k as usize;
+                    let own = e0.value(self.pts.x[k]);
+                    let r = self.sums[k] - self.threshold - own;
+                    let (res, _) = residual(self.pts.kind[k], r + own, self.inv_g[k], self.cfg);
+                    sum += res * res;
+                    r
+                })
+                .collect();
+            (rest, sum)
+        });
+        let rest: Vec<f64> = start.iter().flat_map(|c| c.0.iter().copied()).collect();
         let cost = |p: &Params| -> f64 {
             let e = Eval::new(p);
             let parts = chunked(idx.len(), |range| {
@@ -254,7 +180,8 @@ impl Sweep<'_> {
             parts.iter().sum::<f64>() + prior(p).iter().map(|v| v * v).sum::<f64>()
         };
         let mut p = p0;
-        let mut c = cost(&p);
+        let mut c =
+            start.iter().map(|c| c.1).sum::<f64>() + prior(&p).iter().map(|v| v * v).sum::<f64>();
         let mut lambda = 1e-3;
         for _ in 0..self.cfg.iterations {
             let e = Eval::new(&p);
@@ -493,24 +420,8 @@ mod tests {
     use super::*;
     use glam::DQuat;
 
-    #[test]
-    fn only_small_selections_hold_blobs_back() {
-        let cfg = FullConfig::default();
-        assert_eq!(cfg.held_back(100), 20);
-        assert_eq!(cfg.held_back(cfg.reserve_up_to + 1), 0);
-        assert_eq!(cfg.held_back(300), 0);
-        assert_eq!(cfg.held_back(0), 0);
-        let all = FullConfig {
-            budget_reserve: 1.0,
-            ..cfg
-        };
-        assert_eq!(all.held_back(10), 9, "one blob always starts");
-    }
-
-    #[test]
-    fn fits_a_sphere_from_a_poor_start() {
-        // Samples of the unit sphere; one blob started off-centre, squashed and too weak.
-        let m = 2000;
+    /// `m` samples of the unit sphere (a Fibonacci spiral) with their normals.
+    pub(super) fn unit_sphere_samples(m: usize) -> SurfaceSamples {
         let mut s = SurfaceSamples::default();
         for i in 0..m {
             let z = 1.0 - 2.0 * (i as f64 + 0.5) / m as f64;
@@ -521,6 +432,13 @@ mod tests {
             s.normals.push(n);
             s.mean_curvature.push(1.0);
         }
+        s
+    }
+
+    #[test]
+    fn fits_a_sphere_from_a_poor_start() {
+        // Samples of the unit sphere; one blob started off-centre, squashed and too weak.
+        let s = unit_sphere_samples(2000);
         let mut blobs = vec![Blob {
             center: DVec3::new(0.1, -0.05, 0.0),
             rotation: DQuat::IDENTITY,

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::{Budget, FullConfig, FullProblem, drop_dead, drop_negligible, far_field_points};
+use super::{Budget, FullConfig, FullProblem, Placement, drop_negligible, far_field_points};
 use crate::blobby::fit::{FaithfulConfig, objective, optimise_faithful};
 use crate::blobby::{Blob, BlobField};
 use crate::geometry::Ellipsoid;
@@ -64,8 +64,9 @@ pub struct Optimised {
 /// blobs); the full problem on every blob; the drop of the blobs the passes switched off; the
 /// adaptive budget (their count and the selection's held-back share, see
 /// [`FullConfig::budget_reserve`], spent at the worst shortfalls from the unused candidates);
-/// final sweeps over every blob; the drop of negligible blobs. Deterministic at any thread
-/// count.
+/// final sweeps over every blob; in small models, swap rounds that move the least useful
+/// blobs to the worst shortfalls (see [`FullConfig::swap_rounds`]); the drop of negligible
+/// blobs. Deterministic at any thread count.
 pub fn optimise(how: &Optimisation, target: &Target, start: &Start, threshold: f64) -> Optimised {
     let held_back = match how {
         Optimisation::Full(_, full) => full.held_back(start.selected.len()),
@@ -116,7 +117,7 @@ fn full_steps(
         diag,
         threshold,
     );
-    let mut anchors = blobs.clone();
+    let anchors = blobs.clone();
     problem.optimise(blobs, &anchors, cfg.sweeps, None, cfg.shape_prior);
     // Dead blobs (switched off by the faithful pass) are wasted bytes: drop them, keeping the
     // selection order of the rest; their budget is spent where the model falls shortest.
@@ -125,27 +126,31 @@ fn full_steps(
     for (b, &i) in blobs.iter().zip(start.selected) {
         used[i] = b.is_live();
     }
-    drop_dead(blobs, &mut anchors);
+    let mut placed = Placement {
+        blobs: std::mem::take(blobs),
+        anchors,
+        used,
+    };
+    placed.drop_dead();
     let budget = Budget {
         blobs: start.max_blobs,
         candidates: start.candidates,
         initial_a: start.initial_a,
+        points: &target.samples.positions,
     };
-    budget.spend(
-        &problem,
-        blobs,
-        &mut anchors,
-        &mut used,
-        &target.samples.positions,
-    );
+    budget.spend(&problem, &mut placed);
     // The budget re-fits only around the blobs it adds; a last pass over all lets the rest
     // settle with them.
     problem.optimise(
-        blobs,
-        &anchors,
+        &mut placed.blobs,
+        &placed.anchors,
         cfg.final_sweeps,
         None,
         cfg.final_shape_prior,
     );
+    if cfg.is_small(start.selected.len()) {
+        budget.swap(&problem, &mut placed);
+    }
+    *blobs = placed.blobs;
     drop_negligible(blobs, threshold);
 }
