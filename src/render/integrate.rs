@@ -12,11 +12,13 @@
 //! inside it (each jittered within its cell), anti-aliasing the eroded edges.
 //!
 //! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
-//! the medium, see [`march`]); a segment of length `h` is sampled at `s + ξ·h` (one jitter `ξ`
-//! per pixel) and integrated with the
+//! the medium, see [`march`]; fine steps are thin where the ray enters the cloud and grow as its
+//! transmittance falls, so each absorbs about the same share of the pixel's light); a segment of
+//! length `h` is sampled at `s + ξ·h` (one jitter `ξ` per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
-//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`].
+//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
+//! light scattered straight on along it ([`Shading::forward_sky`]).
 
 use glam::Vec3A;
 use rand::RngExt;

@@ -2,7 +2,7 @@
 //!
 //! In: [`RenderSettings`]. Out: [`Shading`], which the integrator evaluates per ray (phase
 //! weights, which depend only on the ray direction) and per sample (sun and sky in-scattering
-//! from the optical depths toward the sun and straight up).
+//! from the optical depths toward the sun and the sky cells of [`super::sky_light`]).
 //!
 //! - Henyey & Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93: the phase function.
 //! - Wrenninge, Kulla & Lundqvist (2013), "Oz: the great and volumetric", SIGGRAPH Talks: the
