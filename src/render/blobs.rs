@@ -222,6 +222,7 @@ impl BlobMedium {
                     t1,
                     b2: self.b2[i],
                     slope: self.slope[i],
+                    a_t: m.transpose(),
                     depth: self.depth[i],
                     o,
                     d,

@@ -48,6 +48,9 @@ pub(super) struct Hit {
     pub(super) slope: f32,
     /// Erosion depth `E_i`: `E`, capped at a 0.35 of the blob's smallest semi-axis.
     pub(super) depth: f32,
+    /// Transpose of the world → unit-support map: the field's world gradient is
+    /// `−4B²(1 − |q|²)·Aᵀq` at unit-support point `q`.
+    pub(super) a_t: glam::Mat3A,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
     pub(super) o: Vec3A,
     pub(super) d: Vec3A,
@@ -122,6 +125,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
     let mut fmax = 0.0f32;
+    let mut grad = Vec3A::ZERO;
     for (k, h) in hits.iter().enumerate() {
         if h.t0 > t {
             break;
@@ -129,10 +133,12 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
         if t > h.t1 {
             continue;
         }
-        let u = (h.o + h.d * t).length_squared();
+        let q = h.o + h.d * t;
+        let u = q.length_squared();
         if u < 1.0 {
             let w = 1.0 - u;
             let f = h.b2 * w * w;
+            grad += h.a_t * q * (h.b2 * w);
             g += f;
             fmax = fmax.max(f);
             if n < MAX_ACTIVE {
@@ -163,7 +169,9 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             wsum += w;
         }
     }
-    let d = (g - 1.0) * wsum / ssum.max(1e-30);
+    // Depth below the iso-surface to first order: (g − 1) / |∇g|.
+    let _ = ssum;
+    let d = (g - 1.0) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
     let sigma = p.extinction(d, esum / wsum, || {
         let mut sum = 0.0;
         for &(f, k) in &act[..n] {

@@ -119,7 +119,7 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.07,
+            amplitude: 0.025,
             frequency: 7.0,
             octaves: 3,
             evolve: 0.0,
