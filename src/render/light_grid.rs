@@ -69,6 +69,7 @@ pub struct LightGrid {
     /// Depth toward the sun per node.
     sun: Vec<f32>,
     sky_shape: GridShape,
+    sky_inv_h: f32,
     /// [`SKY_DIRECTIONS`] depths per coarse node, node-major.
     sky: Vec<f32>,
 }
@@ -79,7 +80,12 @@ impl LightGrid {
     /// parallel.
     pub fn build(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
-        let (sky_shape, sky_sigma) = coarsen(&shape, sigma);
+        let (half, half_sigma) = coarsen(&shape, sigma);
+        let (sky_shape, sky_sigma) = if SKY_COARSENING == 4 {
+            coarsen(&half, &half_sigma)
+        } else {
+            (half, half_sigma)
+        };
         let dirs = directions();
         // Channel 0 is the sun; light from a sky cell travels from the cell's direction.
         let mut sweeps: Vec<Vec<f32>> = (0..=SKY_DIRECTIONS)
@@ -91,15 +97,19 @@ impl LightGrid {
             .collect();
         let sun = std::mem::take(&mut sweeps[0]);
         let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
-        for (c, depths) in sweeps[1..].iter().enumerate() {
-            for (node, &d) in depths.iter().enumerate() {
-                sky[node * SKY_DIRECTIONS + c] = d;
-            }
-        }
+        let per_cell = &sweeps[1..];
+        sky.par_chunks_mut(SKY_DIRECTIONS)
+            .enumerate()
+            .for_each(|(node, out)| {
+                for (o, depths) in out.iter_mut().zip(per_cell) {
+                    *o = depths[node];
+                }
+            });
         LightGrid {
             inv_h: 1.0 / shape.h,
             shape,
             sun,
+            sky_inv_h: 1.0 / sky_shape.h,
             sky_shape,
             sky,
         }
@@ -117,7 +127,7 @@ impl LightGrid {
         let mut sun = [0.0f32; 1];
         trilinear::<1>(&self.shape, self.inv_h, &self.sun, x, &mut sun);
         let mut sky = [0.0f32; SKY_DIRECTIONS];
-        trilinear::<SKY_DIRECTIONS>(&self.sky_shape, 0.5 * self.inv_h, &self.sky, x, &mut sky);
+        trilinear::<SKY_DIRECTIONS>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);
         LightDepths { sun: sun[0], sky }
     }
 }
@@ -151,6 +161,9 @@ fn trilinear<const C: usize>(shape: &GridShape, inv_h: f32, v: &[f32], x: Vec3A,
         }
     }
 }
+
+/// How much coarser the sky's grid is than the sun's (2 or 4).
+const SKY_COARSENING: u32 = 2;
 
 /// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`),
 /// with each coarse node's extinction the mean of the fine nodes within half a coarse cell
@@ -208,7 +221,11 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     let k = (0..3)
         .max_by(|&p, &q| d[p].abs().total_cmp(&d[q].abs()))
         .unwrap_or(1);
-    let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+    // The inner loop runs along the smaller stride of the two (x before y before z).
+    let (a, b) = {
+        let (p, q) = ((k + 1) % 3, (k + 2) % 3);
+        (p.min(q), p.max(q))
+    };
     let dk = d[k].abs().max(1e-6);
     // One slice back toward the light, in node units: −dir/|dir_k|.
     let (oa, ob) = (-d[a] / dk, -d[b] / dk);
@@ -227,29 +244,54 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
         } else {
             Some(ik + 1).filter(|&p| p < n[k])
         };
+        let slice = ik * stride[k];
+        let Some(pk) = prev else {
+            for ib in 0..n[b] {
+                for ia in 0..n[a] {
+                    let idx = ia * stride[a] + ib * stride[b] + slice;
+                    tau[idx] = 0.5 * sigma[idx] * ds;
+                }
+            }
+            continue;
+        };
+        let back = pk * stride[k];
+        let w = [
+            (1.0 - wa) * (1.0 - wb),
+            wa * (1.0 - wb),
+            (1.0 - wa) * wb,
+            wa * wb,
+        ];
         for ib in 0..n[b] {
+            let qb = ib as isize + fb;
+            let b_inside = qb >= 0 && qb + 1 < n[b] as isize;
             for ia in 0..n[a] {
-                let idx = ia * stride[a] + ib * stride[b] + ik * stride[k];
-                let (mut tq, mut sq) = (0.0, 0.0);
-                if let Some(pk) = prev {
+                let idx = ia * stride[a] + ib * stride[b] + slice;
+                let qa = ia as isize + fa;
+                let (tq, sq) = if b_inside && qa >= 0 && qa + 1 < n[a] as isize {
+                    // All four corners of the back point inside the grid: no checks.
+                    let q = qa as usize * stride[a] + qb as usize * stride[b] + back;
+                    let c = [q, q + stride[a], q + stride[b], q + stride[a] + stride[b]];
+                    let mut acc = (0.0, 0.0);
+                    for (qc, wc) in c.into_iter().zip(w) {
+                        acc.0 += wc * tau[qc];
+                        acc.1 += wc * sigma[qc];
+                    }
+                    acc
+                } else {
                     // Bilinear (τ, σ) at the back point; corners outside the grid count as 0.
-                    for (ca, wca) in [(0isize, 1.0 - wa), (1, wa)] {
-                        let qa = ia as isize + fa + ca;
-                        if qa < 0 || qa >= n[a] as isize || wca == 0.0 {
+                    let mut acc = (0.0, 0.0);
+                    for (corner, wc) in w.into_iter().enumerate() {
+                        let (ca, cb) = ((corner & 1) as isize, (corner >> 1) as isize);
+                        let (qa, qb) = (qa + ca, qb + cb);
+                        if qa < 0 || qa >= n[a] as isize || qb < 0 || qb >= n[b] as isize {
                             continue;
                         }
-                        for (cb, wcb) in [(0isize, 1.0 - wb), (1, wb)] {
-                            let qb = ib as isize + fb + cb;
-                            if qb < 0 || qb >= n[b] as isize || wcb == 0.0 {
-                                continue;
-                            }
-                            let q =
-                                qa as usize * stride[a] + qb as usize * stride[b] + pk * stride[k];
-                            tq += wca * wcb * tau[q];
-                            sq += wca * wcb * sigma[q];
-                        }
+                        let q = qa as usize * stride[a] + qb as usize * stride[b] + back;
+                        acc.0 += wc * tau[q];
+                        acc.1 += wc * sigma[q];
                     }
-                }
+                    acc
+                };
                 tau[idx] = tq + 0.5 * (sigma[idx] + sq) * ds;
             }
         }

@@ -202,7 +202,7 @@ impl Quality {
             QualityPreset::Final => Quality::final_frame(),
             QualityPreset::Production => Quality {
                 step_scale: 0.2,
-                shadow_grid: 224,
+                shadow_grid: 256,
                 ms_octaves: 4,
                 optical_step: 0.02,
                 samples: 4,
@@ -214,7 +214,7 @@ impl Quality {
     pub fn final_frame() -> Quality {
         Quality {
             step_scale: 0.25,
-            shadow_grid: 160,
+            shadow_grid: 224,
             ms_octaves: 3,
             optical_step: 0.05,
             samples: 1,
