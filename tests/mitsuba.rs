@@ -3,15 +3,20 @@
 //!
 //! The grid is the volume export's (`nephele::export::grid::sample_medium` through the frame's
 //! `Medium`, written by `export::vol::write_vol` as Mitsuba's `.vol`). Nephele renders the
-//! frame itself (from the blobs, as in production); `tools/mitsuba_compare.py` renders the
-//! grid in Mitsuba and prints the comparison.
+//! frame itself (from the blobs, as in production: "end to end") and also marches that very
+//! grid (`mitsuba_support/grid_medium.rs`: "same grid", the light transport alone);
+//! `tools/mitsuba_compare.py` renders the grid in Mitsuba and prints the comparison.
 //!
 //! Always-run test: a small comparison when Python with `mitsuba` is importable (set
 //! `NEPHELE_PYTHON` to pick the interpreter), otherwise it prints that it skipped.
 //! Full comparison (documented in the README):
-//! `NEPHELE_MITSUBA_FULL=1 cargo test --release --test mitsuba -- --ignored --nocapture`
+//! `cargo test --release --test mitsuba -- --ignored --nocapture mitsuba_full`
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
-//! duck's last frame).
+//! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells, 256),
+//! `NEPHELE_MITSUBA_DIR` (under the temp dir), `NEPHELE_MITSUBA_REUSE` (reuse its Mitsuba
+//! renders), `NEPHELE_MITSUBA_ONLY_SS`. Diagnosis: `NEPHELE_MITSUBA_QUALITY=grid,step,rays[,coarse]`
+//! overrides the quality, `NEPHELE_MITSUBA_BLACK_SKY` lights by the sun alone,
+//! `NEPHELE_MITSUBA_EXACT` marches the same-grid image's light depths exactly (minutes).
 
 #[path = "mitsuba_support/grid_medium.rs"]
 mod grid_medium;
@@ -273,7 +278,7 @@ fn single_scattering_matches_mitsuba() {
 }
 
 #[test]
-#[ignore = "full comparison: NEPHELE_MITSUBA_FULL=1, see the module doc"]
+#[ignore = "full comparison (minutes), see the module doc"]
 fn mitsuba_full_comparison() {
     let Some(py) = python() else {
         eprintln!("skipping: no Python with mitsuba");

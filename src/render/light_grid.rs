@@ -66,7 +66,7 @@ impl GridShape {
 pub struct LightGrid {
     shape: GridShape,
     inv_h: f32,
-    /// Depth toward the sun per node.
+    /// Depth toward the sun and its transmittance `e^{−τ}` per node.
     sun: Vec<f32>,
     sky_shape: GridShape,
     sky_inv_h: f32,
@@ -95,7 +95,8 @@ impl LightGrid {
                 _ => sweep(&sky_shape, &sky_sigma, -dirs[c - 1]),
             })
             .collect();
-        let sun = std::mem::take(&mut sweeps[0]);
+        let depth = std::mem::take(&mut sweeps[0]);
+        let sun = depth.iter().flat_map(|&t| [t, (-t).exp()]).collect();
         let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
         let per_cell = &sweeps[1..];
         sky.par_chunks_mut(SKY_DIRECTIONS)
@@ -124,11 +125,15 @@ impl LightGrid {
     /// so points outside see the border values).
     #[inline]
     pub fn lookup(&self, x: Vec3A) -> LightDepths {
-        let mut sun = [0.0f32; 1];
-        trilinear::<1>(&self.shape, self.inv_h, &self.sun, x, &mut sun);
+        let mut sun = [0.0f32; 2];
+        trilinear::<2>(&self.shape, self.inv_h, &self.sun, x, &mut sun);
         let mut sky = [0.0f32; SKY_DIRECTIONS];
         trilinear::<SKY_DIRECTIONS>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);
-        LightDepths { sun: sun[0], sky }
+        LightDepths {
+            sun: sun[0],
+            sun_transmittance: sun[1],
+            sky,
+        }
     }
 }
 

@@ -309,7 +309,7 @@ impl Shading {
         }
         let n = self.octaves as usize;
         if n == 1 {
-            return self.sun_radiance * (w.sun[0] * (-tau.sun).exp()) + sky;
+            return self.sun_radiance * (w.sun[0] * tau.sun_transmittance) + sky;
         }
         // exp(−τ·2^−i) for i = n−1 first, then squared down to i = 0: one exp per depth.
         let first = 1.0 / (1u32 << (n - 1)) as f32;
@@ -321,7 +321,8 @@ impl Shading {
         let (mut sun, mut up, mut down) = (0.0, 0.0, 0.0);
         let mut b = self.ms_weight_last;
         for i in (0..n).rev() {
-            sun += w.sun[i] * ts;
+            // Single scattering from the transmittance itself (exact where it is known).
+            sun += w.sun[i] * if i == 0 { tau.sun_transmittance } else { ts };
             if i > 0 {
                 up += b * tu;
                 down += b * td;

@@ -144,8 +144,10 @@ impl Medium for DenseGrid {
             return l.lookup(x);
         }
         let dirs = nephele::render::sky_light::directions();
+        let sun = self.depth(x, -self.sun_dir);
         LightDepths {
-            sun: self.depth(x, -self.sun_dir),
+            sun,
+            sun_transmittance: (-sun).exp(),
             sky: std::array::from_fn(|k| self.depth(x, dirs[k])),
         }
     }
