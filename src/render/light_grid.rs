@@ -15,6 +15,7 @@ use rayon::prelude::*;
 
 use super::medium::LightDepths;
 use super::sky_light::{SKY_DIRECTIONS, directions};
+use super::sun_grid::SunGrid;
 
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.
@@ -59,15 +60,14 @@ impl GridShape {
     }
 }
 
-/// Optical depths toward the sun on the nodes of a [`GridShape`], and toward each sky cell on
-/// a grid of twice the spacing (sky light comes from a broad source: its shadows are soft, and
-/// 26 sweeps at full resolution would cost more than the frame).
+/// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
+/// toward each sky cell on a grid of twice the spacing (sky light comes from a broad source: its
+/// shadows are soft, and 26 sweeps at full resolution would cost more than the frame).
 #[derive(Clone, Debug)]
 pub struct LightGrid {
     shape: GridShape,
-    inv_h: f32,
-    /// Depth toward the sun and its transmittance `e^{−τ}` per node.
-    sun: Vec<f32>,
+    /// Depth and transmittance toward the sun, on its own light-aligned grid.
+    sun: SunGrid,
     sky_shape: GridShape,
     sky_inv_h: f32,
     /// [`SKY_DIRECTIONS`] depths per coarse node, node-major.
@@ -87,18 +87,18 @@ impl LightGrid {
             (half, half_sigma)
         };
         let dirs = directions();
-        // Channel 0 is the sun; light from a sky cell travels from the cell's direction.
-        let mut sweeps: Vec<Vec<f32>> = (0..=SKY_DIRECTIONS)
-            .into_par_iter()
-            .map(|c| match c {
-                0 => sweep(&shape, sigma, sun_dir),
-                _ => sweep(&sky_shape, &sky_sigma, -dirs[c - 1]),
-            })
-            .collect();
-        let depth = std::mem::take(&mut sweeps[0]);
-        let sun = depth.iter().flat_map(|&t| [t, (-t).exp()]).collect();
+        // Light from a sky cell travels from the cell's direction.
+        let (sun, sweeps) = rayon::join(
+            || SunGrid::build(&shape, sigma, sun_dir),
+            || {
+                (0..SKY_DIRECTIONS)
+                    .into_par_iter()
+                    .map(|c| sweep(&sky_shape, &sky_sigma, -dirs[c]))
+                    .collect::<Vec<Vec<f32>>>()
+            },
+        );
         let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
-        let per_cell = &sweeps[1..];
+        let per_cell = &sweeps;
         sky.par_chunks_mut(SKY_DIRECTIONS)
             .enumerate()
             .for_each(|(node, out)| {
@@ -107,7 +107,6 @@ impl LightGrid {
                 }
             });
         LightGrid {
-            inv_h: 1.0 / shape.h,
             shape,
             sun,
             sky_inv_h: 1.0 / sky_shape.h,
@@ -125,8 +124,7 @@ impl LightGrid {
     /// so points outside see the border values).
     #[inline]
     pub fn lookup(&self, x: Vec3A) -> LightDepths {
-        let mut sun = [0.0f32; 2];
-        trilinear::<2>(&self.shape, self.inv_h, &self.sun, x, &mut sun);
+        let sun = self.sun.lookup(x);
         let mut sky = [0.0f32; SKY_DIRECTIONS];
         trilinear::<SKY_DIRECTIONS>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);
         LightDepths {
@@ -140,7 +138,7 @@ impl LightGrid {
 /// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
 /// accumulated into `out`.
 #[inline]
-fn trilinear<const C: usize>(shape: &GridShape, inv_h: f32, v: &[f32], x: Vec3A, out: &mut [f32; C]) {
+pub(super) fn trilinear<const C: usize>(shape: &GridShape, inv_h: f32, v: &[f32], x: Vec3A, out: &mut [f32; C]) {
     let [nx, ny, nz] = shape.dims;
     let g = ((x - shape.origin) * inv_h).clamp(
         Vec3A::ZERO,

@@ -34,6 +34,7 @@ pub mod output;
 pub mod settings;
 pub mod shading;
 pub mod sky_light;
+pub mod sun_grid;
 
 pub use blobs::{BlobMedium, ray_ellipsoid};
 pub use integrate::{render_medium, render_medium_unshaded};
