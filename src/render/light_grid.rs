@@ -138,7 +138,13 @@ impl LightGrid {
 /// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
 /// accumulated into `out`.
 #[inline]
-pub(super) fn trilinear<const C: usize>(shape: &GridShape, inv_h: f32, v: &[f32], x: Vec3A, out: &mut [f32; C]) {
+pub(super) fn trilinear<const C: usize>(
+    shape: &GridShape,
+    inv_h: f32,
+    v: &[f32],
+    x: Vec3A,
+    out: &mut [f32; C],
+) {
     let [nx, ny, nz] = shape.dims;
     let g = ((x - shape.origin) * inv_h).clamp(
         Vec3A::ZERO,

@@ -104,7 +104,8 @@ impl SkyLight {
         let (g_smooth, g_back) = (g / (1.0 + g), BACK_LOBE_RATIO * g);
         let weights = [(1.0 - BACK_LOBE_WEIGHT) * (1.0 - f), BACK_LOBE_WEIGHT];
         let smooth = move |mu: f32| {
-            weights[0] * henyey_greenstein(mu, g_smooth) + weights[1] * henyey_greenstein(mu, g_back)
+            weights[0] * henyey_greenstein(mu, g_smooth)
+                + weights[1] * henyey_greenstein(mu, g_back)
         };
         SkyLight {
             dirs,

@@ -106,7 +106,13 @@ impl SunGrid {
     #[inline]
     pub fn lookup(&self, x: Vec3A) -> [f32; 2] {
         let mut out = [0.0f32; 2];
-        trilinear::<2>(&self.shape, self.inv_h, &self.values, self.to_light * x, &mut out);
+        trilinear::<2>(
+            &self.shape,
+            self.inv_h,
+            &self.values,
+            self.to_light * x,
+            &mut out,
+        );
         out
     }
 }
