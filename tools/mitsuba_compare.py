@@ -7,6 +7,8 @@ Input: a folder written by `tests/mitsuba.rs` (see its module doc):
   sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb)
   nephele_ss.f32  nephele's frame, single scattering only, over the sky: (y, x, rgba)
   nephele_ms.f32  the same with nephele's multiple-scattering approximation
+  nephele_grid_ss.f32  (optional) nephele's single scattering of grid.vol itself: the light
+                  transport alone, without the grid's discretisation of the density
 
 Mitsuba renders the same camera, sun (directional, same irradiance) and sky (envmap) with
 `volpath`: `max_depth` 2 (single scattering) and 64 (full transport), each twice with
@@ -16,6 +18,7 @@ Output (stdout, JSON):
   ss_rel_rmse       relative RMSE of nephele's single scattering against Mitsuba's (linear
                     luminance over the cloud's pixels), the reference's noise excluded
   ss_rel_rmse_raw   the same, noise included; ss_ref_noise: the reference's relative noise
+  ss_same_grid_rel_rmse  the same for nephele_grid_ss (both renderers on the same grid)
   mean_lum_*        mean ACES luminance of the cloud (alpha > 0.5) for nephele SS / MS and
                     Mitsuba SS / full transport
   base_top_*        mean luminance of the cloud's lowest quarter of rows over its top quarter
@@ -194,15 +197,28 @@ def main():
     # Single scattering: linear luminance over the cloud's pixels.
     cloud = alpha > 0.02
     a, b = (lum(x)[cloud] for x in ref["ss"])
-    m = 0.5 * (a + b)
-    n = lum(n_ss[..., :3])[cloud]
-    mse = float(np.mean((n - m) ** 2))
-    noise = float(np.mean((a - b) ** 2)) / 4.0  # variance of the mean of two renders
-    scale = float(m.mean())
-    out["ss_rel_rmse"] = round(np.sqrt(max(mse - noise, 0.0)) / scale, 4)
-    out["ss_rel_rmse_raw"] = round(np.sqrt(mse) / scale, 4)
-    out["ss_ref_noise"] = round(np.sqrt(noise) / scale, 4)
-    out["ss_mean_ratio"] = round(float(n.mean()) / scale, 4)
+
+    def rel_rmse(img):
+        """(relative RMSE with the reference's noise excluded, raw, noise, mean ratio)."""
+        m = 0.5 * (a + b)
+        n = lum(img[..., :3])[cloud]
+        mse = float(np.mean((n - m) ** 2))
+        noise = float(np.mean((a - b) ** 2)) / 4.0  # variance of the mean of two renders
+        scale = float(m.mean())
+        return (
+            round(np.sqrt(max(mse - noise, 0.0)) / scale, 4),
+            round(np.sqrt(mse) / scale, 4),
+            round(np.sqrt(noise) / scale, 4),
+            round(float(n.mean()) / scale, 4),
+        )
+
+    rmse, raw, noise, ratio = rel_rmse(n_ss)
+    out["ss_rel_rmse"], out["ss_rel_rmse_raw"], out["ss_ref_noise"] = rmse, raw, noise
+    out["ss_mean_ratio"] = ratio
+    grid_path = os.path.join(args.dir, "nephele_grid_ss.f32")
+    if os.path.exists(grid_path):
+        n_grid = load(args.dir, "nephele_grid_ss.f32", (h, w, 4))
+        out["ss_same_grid_rel_rmse"], _, _, out["ss_same_grid_mean_ratio"] = rel_rmse(n_grid)
     # Coverage: do both see the same cloud? (background pixels equal the sky in both)
     bg = alpha < 1e-4
     sky_ref = lum(0.5 * (ref["ss"][0] + ref["ss"][1]))[bg]

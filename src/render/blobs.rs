@@ -11,13 +11,17 @@ use rand::RngExt;
 use rayon::prelude::*;
 
 use super::camera::{Frustum, Ray};
-use super::density::{DensityParams, Hit, density, iso_slope};
+use super::density::{DensityParams, Hit, density};
 use super::light_grid::{GridShape, LightGrid};
-use super::medium::Medium;
+use super::medium::{LightDepths, Medium};
 use super::noise::Octaves;
 use super::settings::RenderSettings;
 use crate::blobby::{Blob, THRESHOLD};
 use crate::rng::{Stream, item_rng};
+
+/// Erosion depth cap as a fraction of a blob's smallest semi-axis, so erosion cannot cut a thin
+/// blob (a leg, a neck) in two.
+pub const EROSION_CAP: f32 = 0.1;
 
 /// Parameters `(t0, t1)` with `t0 ≥ 0` where the ray `o + t·d` is inside the unit ball
 /// `|p| < 1`; `o` and `d` are in the ellipsoid's unit frame (`d` need not be unit length, and
@@ -60,9 +64,7 @@ pub struct BlobMedium {
     noise_from_world: Vec<Mat3A>,
     noise_offset: Vec<Vec3A>,
     b2: Vec<f32>,
-    /// World slope of the normalised field on the blob's iso-surface (see [`super::density`]).
-    slope: Vec<f32>,
-    /// Erosion depth capped at 0.35 of the smallest semi-axis.
+    /// Erosion depth capped at [`EROSION_CAP`] of the smallest semi-axis.
     depth: Vec<f32>,
     /// Bounding-ball radius of the support.
     radius: Vec<f32>,
@@ -93,7 +95,6 @@ impl BlobMedium {
             noise_from_world: Vec::new(),
             noise_offset: Vec::new(),
             b2: Vec::new(),
-            slope: Vec::new(),
             depth: Vec::new(),
             radius: Vec::new(),
             lo: Vec::new(),
@@ -147,11 +148,10 @@ impl BlobMedium {
             m.noise_offset.push(offset);
             m.b2.push((blob.b * blob.b) as f32);
             let mean_radius = (support.x * support.y * support.z).cbrt();
-            m.slope.push(iso_slope(blob.b, mean_radius as f64));
             m.depth.push(
                 m.params
                     .depth
-                    .min(0.35 * blob.semi_axes.min_element() as f32),
+                    .min(EROSION_CAP * blob.semi_axes.min_element() as f32),
             );
             m.radius.push(support.max_element());
             m.lo.push(center - half);
@@ -221,7 +221,7 @@ impl BlobMedium {
                     t0,
                     t1,
                     b2: self.b2[i],
-                    slope: self.slope[i],
+                    a_t: m.transpose(),
                     depth: self.depth[i],
                     o,
                     d,
@@ -330,8 +330,10 @@ impl Medium for BlobMedium {
     }
 
     #[inline]
-    fn light_depths(&self, x: Vec3A) -> [f32; 3] {
-        self.grid.as_ref().map_or([0.0; 3], |g| g.lookup(x))
+    fn light_depths(&self, x: Vec3A) -> LightDepths {
+        self.grid
+            .as_ref()
+            .map_or(LightDepths::ZERO, |g| g.lookup(x))
     }
 
     fn step(&self) -> f32 {

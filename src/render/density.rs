@@ -8,18 +8,18 @@
 //! With `G(x) = Σ f_i(x)`, iso-level `t` and `g = G/t`:
 //!
 //! ```text
-//! d(x)   = (g − 1) / S(x)                      approximate depth below the iso-surface (world)
+//! d(x)   = (g − 1) / |∇g(x)|                   depth below the iso-surface (world, first order)
 //! σ_t(x) = σ · smoothstep(0, W, d − E·e(x))     σ = density / L, W = edge·L, E = amplitude·L
-//! S(x)   = Σ_i w_i s_i / Σ_i w_i,   w_i = max(f_i − ½ max_j f_j, 0)
-//! e(x)   = Σ_i w_i erosion(N_i x + o_i) / Σ_i w_i      ∈ [0, 1]
+//! e(x)   = Σ_i w_i erosion(N_i x + o_i) / Σ_i w_i,   w_i = max(f_i − ½ max_j f_j, 0)   ∈ [0, 1]
 //! ```
 //!
-//! `E` is capped per blob at 0.35 of its smallest semi-axis (blended like `S`), so erosion cannot
-//! cut a thin blob (a leg, a neck) in two.
-//!
-//! `s_i` is blob `i`'s world-space slope of `g` on its own iso-surface (`4B·r_iso / R_i`, `R_i`
-//! the support's mean radius), so `d` is a distance in world units for steep fitted blobs and
-//! soft canonical ones alike. `erosion` ([`super::noise::erosion`]) is 0 on the tops of the
+//! `∇g` is the exact gradient of the summed field (`∇f_i = −4B²(1 − |q|²)·A_iᵀq` at blob `i`'s
+//! unit-support point `q = A_i(x − c_i)`), so `d` is a distance in world units whatever the
+//! blobs' shapes and overlaps, and the density ramp is `W` wide as asked (a depth from one blob's
+//! mean slope was 3–5× too deep on fitted models: the ramp was a sub-voxel step that aliased in
+//! frames and in the exported grids). `E` is capped per blob at
+//! [`super::blobs::EROSION_CAP`] of its smallest semi-axis (blended like `e`), so erosion cannot
+//! cut a thin blob (a leg, a neck) in two. `erosion` ([`super::noise::erosion`]) is 0 on the tops of the
 //! billows and 1 in the creases between them: the iso-surface is carved inward by up to `E`,
 //! never pushed outward, so density exists only where the model's own surface is — a blob
 //! whose field stays below the iso-level is never lifted into view.
@@ -44,10 +44,12 @@ pub(super) struct Hit {
     pub(super) t0: f32,
     pub(super) t1: f32,
     pub(super) b2: f32,
-    /// World slope `s_i` of the normalised field on the blob's iso-surface.
-    pub(super) slope: f32,
-    /// Erosion depth `E_i`: `E`, capped at a 0.35 of the blob's smallest semi-axis.
+    /// Erosion depth `E_i`: `E`, capped at [`super::blobs::EROSION_CAP`] of the blob's smallest
+    /// semi-axis.
     pub(super) depth: f32,
+    /// Transpose of the world → unit-support map: the field's world gradient is
+    /// `−4B²(1 − |q|²)·Aᵀq` at unit-support point `q`.
+    pub(super) a_t: glam::Mat3A,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
     pub(super) o: Vec3A,
     pub(super) d: Vec3A,
@@ -90,20 +92,6 @@ impl DensityParams {
     }
 }
 
-/// World slope of blob field `g = B²(1 − r²)²` (`r` in unit-support coordinates) on its own
-/// iso-surface `g = 1`, `r² = 1 − 1/B`: `4B·r`, divided by the support's mean radius
-/// `support_radius`. A blob that alone never reaches the iso-level (`B ≤ 1`) uses its steepest
-/// slope `(8/3√3)·B²` at `r = 1/√3` instead.
-pub(super) fn iso_slope(b: f64, support_radius: f64) -> f32 {
-    let b = b.abs();
-    let s = if b > 1.0 {
-        4.0 * b * (1.0 - 1.0 / b).sqrt()
-    } else {
-        8.0 / (3.0 * 3f64.sqrt()) * b * b
-    };
-    (s / support_radius.max(1e-30)) as f32
-}
-
 /// `smoothstep` over `[lo, hi]`; a step at `lo` when the range is empty.
 #[inline]
 fn smoothstep(lo: f32, hi: f32, v: f32) -> f32 {
@@ -122,6 +110,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
     let mut fmax = 0.0f32;
+    let mut grad = Vec3A::ZERO;
     for (k, h) in hits.iter().enumerate() {
         if h.t0 > t {
             break;
@@ -129,10 +118,12 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
         if t > h.t1 {
             continue;
         }
-        let u = (h.o + h.d * t).length_squared();
+        let q = h.o + h.d * t;
+        let u = q.length_squared();
         if u < 1.0 {
             let w = 1.0 - u;
             let f = h.b2 * w * w;
+            grad += h.a_t * q * (h.b2 * w);
             g += f;
             fmax = fmax.max(f);
             if n < MAX_ACTIVE {
@@ -154,16 +145,16 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     if g <= 1.0 || !g.is_finite() {
         return (0.0, false);
     }
-    let (mut ssum, mut esum, mut wsum) = (0.0, 0.0, 0.0);
+    let (mut esum, mut wsum) = (0.0, 0.0);
     for &(f, k) in &act[..n] {
         let w = f - 0.5 * fmax;
         if w > 0.0 {
-            ssum += w * hits[k as usize].slope;
             esum += w * hits[k as usize].depth;
             wsum += w;
         }
     }
-    let d = (g - 1.0) * wsum / ssum.max(1e-30);
+    // Depth below the iso-surface to first order: (g − 1) / |∇g| (`grad` is ∇G / −4).
+    let d = (g - 1.0) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
     let sigma = p.extinction(d, esum / wsum, || {
         let mut sum = 0.0;
         for &(f, k) in &act[..n] {
@@ -181,17 +172,6 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn iso_slope_of_canonical_and_steep_blobs() {
-        // Canonical blob A = 1, B = 2: r_iso = √½, slope 4·2·√½ = 5.657 per unit support radius.
-        assert!((iso_slope(2.0, 1.0) - 5.656_854).abs() < 1e-4);
-        // Halving the size doubles the world slope.
-        assert!((iso_slope(2.0, 0.5) - 2.0 * iso_slope(2.0, 1.0)).abs() < 1e-4);
-        // Sub-threshold blob: steepest slope, positive and finite.
-        let s = iso_slope(0.5, 1.0);
-        assert!(s > 0.0 && s < 1.0, "{s}");
-    }
 
     #[test]
     fn extinction_is_zero_outside_full_deep_inside_and_eroded_between() {

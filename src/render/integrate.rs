@@ -12,11 +12,13 @@
 //! inside it (each jittered within its cell), anti-aliasing the eroded edges.
 //!
 //! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
-//! the medium, see [`march`]); a segment of length `h` is sampled at `s + ξ·h` (one jitter `ξ`
-//! per pixel) and integrated with the
+//! the medium, see [`march`]; fine steps are thin where the ray enters the cloud and grow as its
+//! transmittance falls, so each absorbs about the same share of the pixel's light); a segment of
+//! length `h` is sampled at `s + ξ·h` (one jitter `ξ` per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
-//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`].
+//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
+//! light scattered straight on along it ([`Shading::forward_sky`]).
 
 use glam::Vec3A;
 use rand::RngExt;
@@ -34,6 +36,10 @@ pub const TILE: u32 = 16;
 
 /// Transmittance below which a ray stops (its coverage is then `1 − T ≥ 0.999`).
 pub const MIN_TRANSMITTANCE: f32 = 1e-3;
+
+/// Largest optical thickness of one fine step, reached where the transmittance has fallen to
+/// `optical_step / MAX_OPTICAL_STEP`.
+pub const MAX_OPTICAL_STEP: f32 = 1.0;
 
 /// Most samples one ray may take (guards against unbounded intervals).
 const MAX_STEPS: u32 = 1_000_000;
@@ -168,14 +174,21 @@ fn march<M: Medium, const SHADE: bool>(
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
     let scratch = &*scratch;
-    let phase = shading.phase_weights(ray.dir);
+    let weights = SHADE.then(|| shading.ray_weights(ray.dir));
     let coarse = medium.step().max(1e-9);
-    let fine = (optical_step / medium.max_extinction().max(1e-12)).clamp(coarse * 1e-3, coarse);
-    let (mut t_acc, mut rgb, mut depth_sum) = (1.0f32, Vec3A::ZERO, 0.0f32);
+    // Fine steps keep the light each one absorbs, `T·(1 − e^{−σh})`, near `optical_step`: thin
+    // where the ray enters the cloud (what the eye sees most, and where the sunlit skin's light
+    // changes fastest), growing to [`MAX_OPTICAL_STEP`] as the transmittance falls.
+    let inv_sigma = 1.0 / medium.max_extinction().max(1e-12);
+    let fine = |t_acc: f32| {
+        ((optical_step / t_acc).min(MAX_OPTICAL_STEP) * inv_sigma).clamp(coarse * 1e-3, coarse)
+    };
+    let (mut t_acc, mut rgb, mut depth_sum, mut tau) = (1.0f32, Vec3A::ZERO, 0.0f32, 0.0f32);
     let mut budget = MAX_STEPS;
     'intervals: for &[a, b] in medium.intervals(scratch) {
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
-        let (mut s, mut h, mut empty_run, mut last_empty) = (a, coarse, 0.0f32, a);
+        let (mut s, mut h, mut in_medium, mut empty_run, mut last_empty) =
+            (a, coarse, false, 0.0f32, a);
         while s < b && budget > 0 {
             budget -= 1;
             let len = h.min(b - s);
@@ -186,35 +199,46 @@ fn march<M: Medium, const SHADE: bool>(
                 last_empty = t;
                 s += len;
                 empty_run += len;
-                if h < coarse && empty_run >= coarse {
+                if in_medium && empty_run >= coarse {
+                    in_medium = false;
                     h = coarse;
                 }
                 continue;
             }
             empty_run = 0.0;
-            if h > fine {
-                // Found the medium at coarse speed: re-march finely from the last empty sample
-                // (everything before it was sampled empty; what follows was only assumed so).
-                h = fine;
-                s = last_empty;
-                continue;
+            if !in_medium {
+                in_medium = true;
+                let f = fine(t_acc);
+                if f < h {
+                    // Found the medium at coarse speed: re-march finely from the last empty
+                    // sample (everything before it was sampled empty; what follows was only
+                    // assumed so).
+                    h = f;
+                    s = last_empty;
+                    continue;
+                }
             }
             if sigma <= 0.0 {
                 s += len;
                 continue;
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());
-            if SHADE {
-                let tau = medium.light_depths(x);
-                rgb += shading.in_scattered(&phase, tau) * (absorbed * shading.albedo);
+            if let Some(w) = &weights {
+                let depths = medium.light_depths(x);
+                rgb += shading.in_scattered(w, &depths) * (absorbed * shading.albedo);
             }
+            tau += sigma * len;
             depth_sum += t * absorbed;
             t_acc -= absorbed;
             s += len;
             if t_acc < MIN_TRANSMITTANCE {
                 break 'intervals;
             }
+            h = fine(t_acc);
         }
+    }
+    if SHADE && t_acc >= MIN_TRANSMITTANCE {
+        rgb += shading.forward_sky(ray.dir, tau);
     }
     let coverage = 1.0 - t_acc;
     PixelResult {

@@ -1,9 +1,9 @@
-//! The per-frame light-transmittance grid: optical depth toward the sun, straight up and down on the
-//! nodes of a regular grid over the cloud, so shading a march sample costs one trilinear lookup
-//! instead of a secondary march.
+//! The per-frame light-transmittance grid: optical depth toward the sun and toward each sky
+//! cell ([`super::sky_light`]) on the nodes of a regular grid over the cloud, so shading a march
+//! sample costs one trilinear lookup instead of secondary marches.
 //!
 //! In: extinction `σ_t` sampled on the grid nodes (filled by the medium) and the sun direction.
-//! Out: [`LightGrid::lookup`] → `[τ_sun, τ_up, τ_down]` anywhere (clamped to the grid).
+//! Out: [`LightGrid::lookup`] → [`LightDepths`] anywhere (clamped to the grid).
 //!
 //! Each depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
@@ -11,6 +11,11 @@
 //! The repeated bilinear interpolation blurs shadows by about a cell, which suits clouds.
 
 use glam::Vec3A;
+use rayon::prelude::*;
+
+use super::medium::LightDepths;
+use super::sky_light::{SKY_DIRECTIONS, directions};
+use super::sun_grid::SunGrid;
 
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.
@@ -55,32 +60,58 @@ impl GridShape {
     }
 }
 
-/// Optical depths `[toward the sun, straight up, straight down]` on the nodes of a [`GridShape`].
+/// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
+/// toward each sky cell on a grid of twice the spacing (sky light comes from a broad source: its
+/// shadows are soft, and 26 sweeps at full resolution would cost more than the frame).
 #[derive(Clone, Debug)]
 pub struct LightGrid {
     shape: GridShape,
-    inv_h: f32,
-    tau: Vec<[f32; 3]>,
+    /// Depth and transmittance toward the sun, on its own light-aligned grid.
+    sun: SunGrid,
+    sky_shape: GridShape,
+    sky_inv_h: f32,
+    /// [`SKY_DIRECTIONS`] depths per coarse node, node-major.
+    sky: Vec<f32>,
 }
 
 impl LightGrid {
     /// Sweep the depths from `sigma` (extinction per node, `shape.len()` values) for sunlight
-    /// travelling along `sun_dir` (unit).
+    /// travelling along `sun_dir` (unit) and the sky cells of [`directions`]; the sweeps run in
+    /// parallel.
     pub fn build(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
-        let sun = sweep(&shape, sigma, sun_dir);
-        let up = sweep(&shape, sigma, Vec3A::NEG_Y);
-        let down = sweep(&shape, sigma, Vec3A::Y);
-        let tau = sun
-            .into_iter()
-            .zip(up)
-            .zip(down)
-            .map(|((s, u), d)| [s, u, d])
-            .collect();
+        let (half, half_sigma) = coarsen(&shape, sigma);
+        let (sky_shape, sky_sigma) = if SKY_COARSENING == 4 {
+            coarsen(&half, &half_sigma)
+        } else {
+            (half, half_sigma)
+        };
+        let dirs = directions();
+        // Light from a sky cell travels from the cell's direction.
+        let (sun, sweeps) = rayon::join(
+            || SunGrid::build(&shape, sigma, sun_dir),
+            || {
+                (0..SKY_DIRECTIONS)
+                    .into_par_iter()
+                    .map(|c| sweep(&sky_shape, &sky_sigma, -dirs[c]))
+                    .collect::<Vec<Vec<f32>>>()
+            },
+        );
+        let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
+        let per_cell = &sweeps;
+        sky.par_chunks_mut(SKY_DIRECTIONS)
+            .enumerate()
+            .for_each(|(node, out)| {
+                for (o, depths) in out.iter_mut().zip(per_cell) {
+                    *o = depths[node];
+                }
+            });
         LightGrid {
-            inv_h: 1.0 / shape.h,
             shape,
-            tau,
+            sun,
+            sky_inv_h: 1.0 / sky_shape.h,
+            sky_shape,
+            sky,
         }
     }
 
@@ -89,34 +120,104 @@ impl LightGrid {
         &self.shape
     }
 
-    /// Trilinear `[τ_sun, τ_up, τ_down]` at `x` (clamped to the grid; the grid's border nodes are
-    /// outside the cloud, so points outside see the border values).
+    /// Trilinear depths at `x` (clamped to the grids; their border nodes are outside the cloud,
+    /// so points outside see the border values).
     #[inline]
-    pub fn lookup(&self, x: Vec3A) -> [f32; 3] {
-        let [nx, ny, nz] = self.shape.dims;
-        let g = ((x - self.shape.origin) * self.inv_h).clamp(
-            Vec3A::ZERO,
-            Vec3A::new(nx as f32 - 1.001, ny as f32 - 1.001, nz as f32 - 1.001),
-        );
-        let f = g.floor();
-        let w = g - f;
-        let (i, j, k) = (f.x as usize, f.y as usize, f.z as usize);
-        let i00 = i + nx * (j + ny * k);
-        let (sy, sz) = (nx, nx * ny);
-        let t = &self.tau;
-        let lerp2 = |a: [f32; 3], b: [f32; 3], s: f32| {
-            [
-                a[0] + s * (b[0] - a[0]),
-                a[1] + s * (b[1] - a[1]),
-                a[2] + s * (b[2] - a[2]),
-            ]
-        };
-        let x00 = lerp2(t[i00], t[i00 + 1], w.x);
-        let x10 = lerp2(t[i00 + sy], t[i00 + sy + 1], w.x);
-        let x01 = lerp2(t[i00 + sz], t[i00 + sz + 1], w.x);
-        let x11 = lerp2(t[i00 + sy + sz], t[i00 + sy + sz + 1], w.x);
-        lerp2(lerp2(x00, x10, w.y), lerp2(x01, x11, w.y), w.z)
+    pub fn lookup(&self, x: Vec3A) -> LightDepths {
+        let sun = self.sun.lookup(x);
+        let mut sky = [0.0f32; SKY_DIRECTIONS];
+        trilinear::<SKY_DIRECTIONS>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);
+        LightDepths {
+            sun: sun[0],
+            sun_transmittance: sun[1],
+            sky,
+        }
     }
+}
+
+/// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
+/// accumulated into `out`.
+#[inline]
+pub(super) fn trilinear<const C: usize>(
+    shape: &GridShape,
+    inv_h: f32,
+    v: &[f32],
+    x: Vec3A,
+    out: &mut [f32; C],
+) {
+    let [nx, ny, nz] = shape.dims;
+    let g = ((x - shape.origin) * inv_h).clamp(
+        Vec3A::ZERO,
+        Vec3A::new(nx as f32 - 1.001, ny as f32 - 1.001, nz as f32 - 1.001),
+    );
+    let f = g.floor();
+    let w = g - f;
+    let i00 = f.x as usize + nx * (f.y as usize + ny * f.z as usize);
+    let (sy, sz) = (nx, nx * ny);
+    let corners = [
+        (i00, (1.0 - w.x) * (1.0 - w.y) * (1.0 - w.z)),
+        (i00 + 1, w.x * (1.0 - w.y) * (1.0 - w.z)),
+        (i00 + sy, (1.0 - w.x) * w.y * (1.0 - w.z)),
+        (i00 + sy + 1, w.x * w.y * (1.0 - w.z)),
+        (i00 + sz, (1.0 - w.x) * (1.0 - w.y) * w.z),
+        (i00 + sz + 1, w.x * (1.0 - w.y) * w.z),
+        (i00 + sy + sz, (1.0 - w.x) * w.y * w.z),
+        (i00 + sy + sz + 1, w.x * w.y * w.z),
+    ];
+    for (node, wc) in corners {
+        for (a, &t) in out.iter_mut().zip(&v[node * C..(node + 1) * C]) {
+            *a += wc * t;
+        }
+    }
+}
+
+/// How much coarser the sky's grid is than the sun's (2 or 4).
+const SKY_COARSENING: u32 = 2;
+
+/// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`),
+/// with each coarse node's extinction the mean of the fine nodes within half a coarse cell
+/// (weights ½, 1, ½ per axis), so optical depths through it keep their value.
+fn coarsen(shape: &GridShape, sigma: &[f32]) -> (GridShape, Vec<f32>) {
+    let [nx, ny, nz] = shape.dims;
+    let dims = [nx.div_ceil(2) + 1, ny.div_ceil(2) + 1, nz.div_ceil(2) + 1];
+    let coarse = GridShape {
+        origin: shape.origin,
+        h: 2.0 * shape.h,
+        dims,
+    };
+    let mut out = vec![0.0f32; coarse.len()];
+    out.par_chunks_mut(dims[0] * dims[1])
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+                    for dk in -1i64..=1 {
+                        for dj in -1i64..=1 {
+                            for di in -1i64..=1 {
+                                let (fi, fj, fk) =
+                                    (2 * i as i64 + di, 2 * j as i64 + dj, 2 * k as i64 + dk);
+                                if fi < 0 || fj < 0 || fk < 0 {
+                                    continue;
+                                }
+                                let (fi, fj, fk) = (fi as usize, fj as usize, fk as usize);
+                                if fi >= nx || fj >= ny || fk >= nz {
+                                    continue;
+                                }
+                                let w = [di, dj, dk]
+                                    .iter()
+                                    .map(|&d| if d == 0 { 1.0 } else { 0.5 })
+                                    .product::<f32>();
+                                sum += w * sigma[fi + nx * (fj + ny * fk)];
+                                wsum += w;
+                            }
+                        }
+                    }
+                    slice[i + dims[0] * j] = sum / wsum.max(1e-12);
+                }
+            }
+        });
+    (coarse, out)
 }
 
 /// Shift of the stored depths toward the light, in cells (see [`sweep`]).
@@ -129,7 +230,11 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     let k = (0..3)
         .max_by(|&p, &q| d[p].abs().total_cmp(&d[q].abs()))
         .unwrap_or(1);
-    let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+    // The inner loop runs along the smaller stride of the two (x before y before z).
+    let (a, b) = {
+        let (p, q) = ((k + 1) % 3, (k + 2) % 3);
+        (p.min(q), p.max(q))
+    };
     let dk = d[k].abs().max(1e-6);
     // One slice back toward the light, in node units: −dir/|dir_k|.
     let (oa, ob) = (-d[a] / dk, -d[b] / dk);
@@ -148,29 +253,54 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
         } else {
             Some(ik + 1).filter(|&p| p < n[k])
         };
+        let slice = ik * stride[k];
+        let Some(pk) = prev else {
+            for ib in 0..n[b] {
+                for ia in 0..n[a] {
+                    let idx = ia * stride[a] + ib * stride[b] + slice;
+                    tau[idx] = 0.5 * sigma[idx] * ds;
+                }
+            }
+            continue;
+        };
+        let back = pk * stride[k];
+        let w = [
+            (1.0 - wa) * (1.0 - wb),
+            wa * (1.0 - wb),
+            (1.0 - wa) * wb,
+            wa * wb,
+        ];
         for ib in 0..n[b] {
+            let qb = ib as isize + fb;
+            let b_inside = qb >= 0 && qb + 1 < n[b] as isize;
             for ia in 0..n[a] {
-                let idx = ia * stride[a] + ib * stride[b] + ik * stride[k];
-                let (mut tq, mut sq) = (0.0, 0.0);
-                if let Some(pk) = prev {
+                let idx = ia * stride[a] + ib * stride[b] + slice;
+                let qa = ia as isize + fa;
+                let (tq, sq) = if b_inside && qa >= 0 && qa + 1 < n[a] as isize {
+                    // All four corners of the back point inside the grid: no checks.
+                    let q = qa as usize * stride[a] + qb as usize * stride[b] + back;
+                    let c = [q, q + stride[a], q + stride[b], q + stride[a] + stride[b]];
+                    let mut acc = (0.0, 0.0);
+                    for (qc, wc) in c.into_iter().zip(w) {
+                        acc.0 += wc * tau[qc];
+                        acc.1 += wc * sigma[qc];
+                    }
+                    acc
+                } else {
                     // Bilinear (τ, σ) at the back point; corners outside the grid count as 0.
-                    for (ca, wca) in [(0isize, 1.0 - wa), (1, wa)] {
-                        let qa = ia as isize + fa + ca;
-                        if qa < 0 || qa >= n[a] as isize || wca == 0.0 {
+                    let mut acc = (0.0, 0.0);
+                    for (corner, wc) in w.into_iter().enumerate() {
+                        let (ca, cb) = ((corner & 1) as isize, (corner >> 1) as isize);
+                        let (qa, qb) = (qa + ca, qb + cb);
+                        if qa < 0 || qa >= n[a] as isize || qb < 0 || qb >= n[b] as isize {
                             continue;
                         }
-                        for (cb, wcb) in [(0isize, 1.0 - wb), (1, wb)] {
-                            let qb = ib as isize + fb + cb;
-                            if qb < 0 || qb >= n[b] as isize || wcb == 0.0 {
-                                continue;
-                            }
-                            let q =
-                                qa as usize * stride[a] + qb as usize * stride[b] + pk * stride[k];
-                            tq += wca * wcb * tau[q];
-                            sq += wca * wcb * sigma[q];
-                        }
+                        let q = qa as usize * stride[a] + qb as usize * stride[b] + back;
+                        acc.0 += wc * tau[q];
+                        acc.1 += wc * sigma[q];
                     }
-                }
+                    acc
+                };
                 tau[idx] = tq + 0.5 * (sigma[idx] + sq) * ds;
             }
         }
@@ -211,17 +341,22 @@ mod tests {
         for sun in [Vec3A::NEG_Y, Vec3A::new(-0.4, -0.8, -0.3).normalize()] {
             let grid = ball_grid(sun);
             // Centre: the chord toward the sun is the radius; likewise straight up.
-            let [ts, tu, td] = grid.lookup(Vec3A::ZERO);
+            let c = grid.lookup(Vec3A::ZERO);
+            let (ts, tu, td) = (
+                c.sun,
+                c.sky[crate::render::sky_light::UP],
+                c.sky[crate::render::sky_light::DOWN],
+            );
             assert!((td / 3.0 - 1.0).abs() < 0.04, "τ_down at centre {td}");
             assert!((ts / 3.0 - 1.0).abs() < 0.04, "τ_sun at centre {ts}");
             assert!((tu / 3.0 - 1.0).abs() < 0.04, "τ_up at centre {tu}");
             // The point half-way toward the sun, and the antipode (full diameter minus ½).
-            let [ts, ..] = grid.lookup(-sun * 0.5);
+            let ts = grid.lookup(-sun * 0.5).sun;
             assert!((ts / 1.5 - 1.0).abs() < 0.06, "τ_sun half-way {ts}");
-            let [ts, ..] = grid.lookup(sun * 0.5);
+            let ts = grid.lookup(sun * 0.5).sun;
             assert!((ts / 4.5 - 1.0).abs() < 0.04, "τ_sun far side {ts}");
             // Outside on the sunny side nothing is in the way.
-            assert!(grid.lookup(-sun * 1.05)[0] < 0.05);
+            assert!(grid.lookup(-sun * 1.05).sun < 0.05);
         }
     }
 }

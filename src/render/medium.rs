@@ -8,6 +8,30 @@
 use glam::Vec3A;
 
 use super::camera::{Frustum, Ray};
+use super::sky_light::{SKY_DIRECTIONS, directions};
+
+/// Optical depths from a point toward the lights: the sun, and each sky cell of
+/// [`super::sky_light`] (in the order of [`directions`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightDepths {
+    /// Toward the sun.
+    pub sun: f32,
+    /// Transmittance toward the sun, `e^{−sun}` where known exactly; a light grid interpolates
+    /// the transmittance itself (see [`super::light_grid`]), which differs from `e^{−sun}` of the
+    /// interpolated depth where the depth changes fast.
+    pub sun_transmittance: f32,
+    /// Toward each sky cell.
+    pub sky: [f32; SKY_DIRECTIONS],
+}
+
+impl LightDepths {
+    /// No medium in the way.
+    pub const ZERO: LightDepths = LightDepths {
+        sun: 0.0,
+        sun_transmittance: 1.0,
+        sky: [0.0; SKY_DIRECTIONS],
+    };
+}
 
 /// A participating medium as the integrator sees it.
 ///
@@ -44,8 +68,8 @@ pub trait Medium: Sync {
         (sigma, sigma > 0.0)
     }
 
-    /// Optical depths `[toward the sun, straight up, straight down]` from `x`.
-    fn light_depths(&self, x: Vec3A) -> [f32; 3];
+    /// Optical depths from `x` toward the sun and the sky cells.
+    fn light_depths(&self, x: Vec3A) -> LightDepths;
 
     /// Coarse march step through empty parts of the intervals (world units).
     fn step(&self) -> f32;
@@ -141,13 +165,18 @@ impl Medium for Homogeneous {
         self.sigma_t
     }
 
-    fn light_depths(&self, x: Vec3A) -> [f32; 3] {
+    fn light_depths(&self, x: Vec3A) -> LightDepths {
         let depth = |dir: Vec3A| {
             self.shape
                 .interval(x, dir)
                 .map_or(0.0, |(t0, t1)| self.sigma_t * (t1 - t0))
         };
-        [depth(-self.sun_dir), depth(Vec3A::Y), depth(Vec3A::NEG_Y)]
+        let dirs = directions();
+        LightDepths {
+            sun: depth(-self.sun_dir),
+            sun_transmittance: (-depth(-self.sun_dir)).exp(),
+            sky: std::array::from_fn(|k| depth(dirs[k])),
+        }
     }
 
     fn step(&self) -> f32 {

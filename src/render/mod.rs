@@ -6,7 +6,8 @@
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
 //!
 //! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA and
-//! builds the per-frame light grid ([`light_grid`]: optical depth toward the sun and upward);
+//! builds the per-frame light grid ([`light_grid`]: optical depth toward the sun and toward the
+//! sky cells of [`sky_light`]);
 //! [`integrate`] marches every pixel through the blob supports only (tile frustum culling, then
 //! per-ray ellipsoid intervals), evaluating the noisy density ([`density`], [`noise`]) and the
 //! lighting ([`shading`]).
@@ -32,10 +33,12 @@ pub mod noise;
 pub mod output;
 pub mod settings;
 pub mod shading;
+pub mod sky_light;
+pub mod sun_grid;
 
 pub use blobs::{BlobMedium, ray_ellipsoid};
 pub use integrate::{render_medium, render_medium_unshaded};
-pub use medium::{Homogeneous, Medium, Shape};
+pub use medium::{Homogeneous, LightDepths, Medium, Shape};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };

@@ -119,7 +119,7 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.07,
+            amplitude: 0.025,
             frequency: 7.0,
             octaves: 3,
             evolve: 0.0,
@@ -179,13 +179,16 @@ pub struct Quality {
     /// Coarse march step (through the empty parts of the blob supports) as a fraction of the
     /// median blob's support radius (clamped by the renderer to `[L/2000, L/16]`).
     pub step_scale: f32,
-    /// Resolution of the light-transmittance grid along its longest side.
+    /// Resolution of the light-transmittance grid along its longest side (toward the sun; the
+    /// sky's depths use half of it).
     pub shadow_grid: u32,
     /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
     /// only; at most 6).
     pub ms_octaves: u32,
-    /// Largest optical thickness `σ·h` of one march step inside the cloud (smaller = less
-    /// grain at the sunlit surface, slower).
+    /// Optical thickness `σ·h` of a march step inside the cloud where the ray enters it; deeper
+    /// in, steps grow as the transmittance falls (each absorbs about this much of the pixel's
+    /// light), up to an optical thickness of 1. Smaller = less grain at the sunlit surface,
+    /// slower.
     pub optical_step: f32,
     /// Rays per pixel (stratified inside the pixel; 1 = through the pixel centre).
     pub samples: u32,
@@ -199,9 +202,9 @@ impl Quality {
             QualityPreset::Final => Quality::final_frame(),
             QualityPreset::Production => Quality {
                 step_scale: 0.2,
-                shadow_grid: 192,
+                shadow_grid: 256,
                 ms_octaves: 4,
-                optical_step: 0.2,
+                optical_step: 0.02,
                 samples: 4,
             },
         }
@@ -211,9 +214,9 @@ impl Quality {
     pub fn final_frame() -> Quality {
         Quality {
             step_scale: 0.25,
-            shadow_grid: 128,
+            shadow_grid: 224,
             ms_octaves: 3,
-            optical_step: 0.25,
+            optical_step: 0.05,
             samples: 1,
         }
     }
@@ -224,7 +227,7 @@ impl Quality {
             step_scale: 0.6,
             shadow_grid: 48,
             ms_octaves: 2,
-            optical_step: 0.5,
+            optical_step: 0.15,
             samples: 1,
         }
     }

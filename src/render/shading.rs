@@ -2,7 +2,7 @@
 //!
 //! In: [`RenderSettings`]. Out: [`Shading`], which the integrator evaluates per ray (phase
 //! weights, which depend only on the ray direction) and per sample (sun and sky in-scattering
-//! from the optical depths toward the sun and straight up).
+//! from the optical depths toward the sun and the sky cells of [`super::sky_light`]).
 //!
 //! - Henyey & Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93: the phase function.
 //! - Wrenninge, Kulla & Lundqvist (2013), "Oz: the great and volumetric", SIGGRAPH Talks: the
@@ -13,7 +13,9 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A};
 
+use super::medium::LightDepths;
 use super::settings::{RenderSettings, Sky, Sun};
+use super::sky_light::{DOWN, SKY_DIRECTIONS, SkyLight, UP};
 
 /// Henyey–Greenstein phase function `(1 − g²) / (4π (1 + g² − 2gμ)^{3/2})` for the cosine `μ`
 /// between the light's travel direction and the scattered direction. Integrates to 1 over the
@@ -213,16 +215,27 @@ pub struct Shading {
     pub g: f32,
     /// Scattering octaves (1 = single scattering only), at most [`MAX_OCTAVES`].
     pub octaves: u32,
-    /// Sky light from above (before occlusion).
+    /// Sky light from above (before occlusion), for the multiple-scattering octaves.
     pub sky_up: Vec3A,
-    /// Ground light from below (before occlusion).
+    /// Ground light from below (before occlusion), for the multiple-scattering octaves.
     pub sky_down: Vec3A,
+    /// The sky's single scattering, per cell.
+    pub sky: SkyLight,
     /// `b^(octaves−1)`: the last octave's contribution weight.
     ms_weight_last: f32,
 }
 
 /// Upper bound on the multiple-scattering octaves.
 pub const MAX_OCTAVES: u32 = 6;
+
+/// What a ray's direction fixes for all its samples: the phase weights toward the eye.
+#[derive(Clone, Debug)]
+pub struct RayWeights {
+    /// `b^i · p(μ, c^i g)` of each octave for the sun.
+    pub sun: [f32; MAX_OCTAVES as usize],
+    /// RGB weight of each sky cell's transmittance (single scattering).
+    pub sky: [Vec3A; SKY_DIRECTIONS],
+}
 
 impl Shading {
     /// Constants for `settings` (a zero sun direction falls back to straight down; without
@@ -236,68 +249,97 @@ impl Shading {
         } else {
             1
         };
+        let g = settings.cloud.phase_g.clamp(-0.99, 0.99);
         Shading {
             sun_dir: Vec3A::from(sun.travel_dir()),
             sun_radiance: Vec3A::from(sun.color * sun.intensity * tint),
             albedo: settings.cloud.albedo.clamp(0.0, 1.0),
-            g: settings.cloud.phase_g.clamp(-0.99, 0.99),
+            g,
             octaves,
             sky_up: Vec3A::from(dome.upper_mean()),
             sky_down: Vec3A::from(dome.lower_mean()),
+            sky: SkyLight::new(&dome, g),
             ms_weight_last: (1..octaves).fold(1.0, |b, _| b * MS_CONTRIBUTION),
         }
     }
 
-    /// Phase weights `b^i · p(μ, c^i g)` of each octave for a ray with unit direction `dir`.
+    /// Phase weights for a ray with unit direction `dir`.
     #[inline]
-    pub fn phase_weights(&self, dir: Vec3A) -> [f32; MAX_OCTAVES as usize] {
+    pub fn ray_weights(&self, dir: Vec3A) -> RayWeights {
         // Scattered toward the eye: the outgoing direction is −dir.
         let mu = -self.sun_dir.dot(dir);
-        let mut w = [0.0; MAX_OCTAVES as usize];
+        let mut sun = [0.0; MAX_OCTAVES as usize];
         let (mut b, mut g) = (1.0, self.g);
-        for wi in w.iter_mut().take(self.octaves as usize) {
+        for wi in sun.iter_mut().take(self.octaves as usize) {
             *wi = b * cloud_phase(mu, g);
             b *= MS_CONTRIBUTION;
             g *= MS_ANISOTROPY;
         }
-        w
+        RayWeights {
+            sun,
+            sky: self.sky.ray_weights(dir),
+        }
+    }
+
+    /// Radiance a whole ray scatters straight on from the sky behind it (the delta part of
+    /// the phase function, [`SkyLight`]): `albedo · delta · L_sky(dir) · τ · e^{−τ}` for the
+    /// ray's optical depth `tau` through the cloud.
+    #[inline]
+    pub fn forward_sky(&self, dir: Vec3A, tau: f32) -> Vec3A {
+        let k = self.albedo * self.sky.delta() * tau * (-tau).exp();
+        if k <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        self.sky.forward_radiance(dir) * k
     }
 
     /// In-scattered radiance per unit scattering coefficient at a point with optical depths
-    /// `tau = [τ_sun, τ_up, τ_down]`, for a ray with phase weights `w`.
+    /// `tau`, for a ray with weights `w`.
     ///
-    /// Octave `i` (0 = single scattering) sees the extinction scaled by `a^i` (`a = ½`) and
-    /// contributes with `b^i` ([`MS_CONTRIBUTION`]): the sun through its phase weight, the sky
-    /// isotropically — half the sphere's light from the sky above through `τ_up`, half from the
-    /// ground below through `τ_down`.
+    /// Single scattering: the sun through its phase weight and each sky cell through its
+    /// weight and depth. Octave `i ≥ 1` of the multiple-scattering approximation sees the
+    /// extinction scaled by `a^i` (`a = ½`) and contributes with `b^i` ([`MS_CONTRIBUTION`]):
+    /// the sun through its phase weight, the sky isotropically — half the sphere's light from
+    /// the sky above through the upward depth, half from the ground below through the downward.
     #[inline]
-    pub fn in_scattered(&self, w: &[f32; MAX_OCTAVES as usize], tau: [f32; 3]) -> Vec3A {
-        // exp(−τ·2^−i) for i = n−1 first, then squared down to i = 0: one exp per depth.
+    pub fn in_scattered(&self, w: &RayWeights, tau: &LightDepths) -> Vec3A {
+        let mut sky = Vec3A::ZERO;
+        for (wk, &t) in w.sky.iter().zip(&tau.sky) {
+            sky += *wk * (-t).exp();
+        }
         let n = self.octaves as usize;
+        if n == 1 {
+            return self.sun_radiance * (w.sun[0] * tau.sun_transmittance) + sky;
+        }
+        // exp(−τ·2^−i) for i = n−1 first, then squared down to i = 0: one exp per depth.
         let first = 1.0 / (1u32 << (n - 1)) as f32;
         let (mut ts, mut tu, mut td) = (
-            (-tau[0] * first).exp(),
-            (-tau[1] * first).exp(),
-            (-tau[2] * first).exp(),
+            (-tau.sun * first).exp(),
+            (-tau.sky[UP] * first).exp(),
+            (-tau.sky[DOWN] * first).exp(),
         );
         let (mut sun, mut up, mut down) = (0.0, 0.0, 0.0);
         let mut b = self.ms_weight_last;
         for i in (0..n).rev() {
-            sun += w[i] * ts;
-            up += b * tu;
-            down += b * td;
+            // Single scattering from the transmittance itself (exact where it is known).
+            sun += w.sun[i] * if i == 0 { tau.sun_transmittance } else { ts };
+            if i > 0 {
+                up += b * tu;
+                down += b * td;
+            }
             b /= MS_CONTRIBUTION;
             ts *= ts;
             tu *= tu;
             td *= td;
         }
-        self.sun_radiance * sun + (self.sky_up * up + self.sky_down * down) * (0.5 * SKY_PHASE)
+        self.sun_radiance * sun
+            + sky
+            + (self.sky_up * up + self.sky_down * down) * (0.5 * SKY_PHASE)
     }
 }
 
-/// Share of the isotropic sky estimate that a forward-scattering cloud (`g ≈ 0.75`) turns
-/// toward the eye: its in-scattered sky light comes mostly from the sky behind it, seen through
-/// it. Calibrated against Mitsuba's single scattering of the same sky (README).
+/// Share of the isotropic sky estimate that the multiple-scattering octaves turn toward the
+/// eye. Calibrated against Mitsuba's full transport of the same sky (README).
 pub const SKY_PHASE: f32 = 0.64;
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);

@@ -1,0 +1,162 @@
+//! A dense density grid as a [`Medium`]: the very grid Mitsuba renders (cell-centred trilinear,
+//! clamped at the box), with optical depths toward the lights marched exactly through it.
+//! Used to separate the light transport from the density's discretisation in the comparison.
+
+use glam::Vec3A;
+use nephele::export::grid::{DensityGrid, Leaf};
+use nephele::render::camera::{Frustum, Ray};
+use nephele::render::{LightDepths, Medium};
+
+/// The grid, dense over its active box.
+pub struct DenseGrid {
+    lo: Vec3A,
+    hi: Vec3A,
+    voxel: f32,
+    dims: [usize; 3],
+    vals: Vec<f32>,
+    max: f32,
+    sun_dir: Vec3A,
+    light: Option<nephele::render::light_grid::LightGrid>,
+}
+
+impl DenseGrid {
+    /// `grid` made dense; `sun_dir` the direction the sunlight travels.
+    pub fn new(grid: &DensityGrid, sun_dir: Vec3A) -> DenseGrid {
+        let (lo, hi) = grid.active_index_bounds().expect("a live cloud");
+        let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
+        let mut vals = vec![0.0; dims[0] * dims[1] * dims[2]];
+        for (ijk, v) in grid.leaves.iter().flat_map(Leaf::active) {
+            let [x, y, z] = std::array::from_fn(|a| (ijk[a] - lo[a]) as usize);
+            vals[(z * dims[1] + y) * dims[0] + x] = v;
+        }
+        let h = 0.5 * grid.voxel;
+        let wlo = grid.world(lo).map(|c| (c - h) as f32);
+        let whi = grid.world(hi).map(|c| (c + h) as f32);
+        DenseGrid {
+            lo: Vec3A::from(wlo),
+            hi: Vec3A::from(whi),
+            voxel: grid.voxel as f32,
+            dims,
+            max: grid.max_value(),
+            vals,
+            sun_dir,
+            light: None,
+        }
+    }
+
+    /// Use a light grid of `res` cells (as the blob medium does) instead of exact marches.
+    pub fn with_light_grid(mut self, res: u32) -> DenseGrid {
+        use nephele::render::light_grid::{GridShape, LightGrid};
+        let shape = GridShape::covering(self.lo, self.hi, res);
+        let [nx, ny, nz] = shape.dims;
+        let mut sigma = vec![0.0; shape.len()];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    sigma[i + nx * (j + ny * k)] = self.sigma(shape.node(i, j, k));
+                }
+            }
+        }
+        self.light = Some(LightGrid::build(shape, &sigma, self.sun_dir));
+        self
+    }
+
+    fn at(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.vals[(k * self.dims[1] + j) * self.dims[0] + i]
+    }
+
+    /// Trilinear extinction at `x` (cell centres, clamped; 0 outside the box).
+    pub fn sigma(&self, x: Vec3A) -> f32 {
+        if x.cmplt(self.lo).any() || x.cmpgt(self.hi).any() {
+            return 0.0;
+        }
+        let n = Vec3A::new(
+            self.dims[0] as f32 - 1.0,
+            self.dims[1] as f32 - 1.0,
+            self.dims[2] as f32 - 1.0,
+        );
+        let g = ((x - self.lo) / self.voxel - 0.5).clamp(Vec3A::ZERO, n);
+        let f = g.floor();
+        let w = g - f;
+        let (i, j, k) = (f.x as usize, f.y as usize, f.z as usize);
+        let (i1, j1, k1) = (
+            (i + 1).min(self.dims[0] - 1),
+            (j + 1).min(self.dims[1] - 1),
+            (k + 1).min(self.dims[2] - 1),
+        );
+        let l = |a: f32, b: f32, t: f32| a + t * (b - a);
+        let x00 = l(self.at(i, j, k), self.at(i1, j, k), w.x);
+        let x10 = l(self.at(i, j1, k), self.at(i1, j1, k), w.x);
+        let x01 = l(self.at(i, j, k1), self.at(i1, j, k1), w.x);
+        let x11 = l(self.at(i, j1, k1), self.at(i1, j1, k1), w.x);
+        l(l(x00, x10, w.y), l(x01, x11, w.y), w.z)
+    }
+
+    fn interval(&self, o: Vec3A, d: Vec3A) -> Option<(f32, f32)> {
+        let inv = d.recip();
+        let (a, b) = ((self.lo - o) * inv, (self.hi - o) * inv);
+        let t0 = a.min(b).max_element().max(0.0);
+        let t1 = a.max(b).min_element();
+        (t1 > t0).then_some((t0, t1))
+    }
+
+    /// Optical depth from `x` along `dir` to the box's exit (midpoint rule, quarter-voxel steps).
+    fn depth(&self, x: Vec3A, dir: Vec3A) -> f32 {
+        let Some((t0, t1)) = self.interval(x, dir) else {
+            return 0.0;
+        };
+        let h = 0.25 * self.voxel;
+        let n = ((t1 - t0) / h).ceil().max(1.0) as usize;
+        let h = (t1 - t0) / n as f32;
+        (0..n)
+            .map(|s| self.sigma(x + dir * (t0 + (s as f32 + 0.5) * h)))
+            .sum::<f32>()
+            * h
+    }
+}
+
+impl Medium for DenseGrid {
+    type Scratch = Vec<[f32; 2]>;
+
+    fn scratch(&self) -> Self::Scratch {
+        Vec::with_capacity(1)
+    }
+
+    fn begin_tile(&self, _: &Frustum, _: &mut Self::Scratch) {}
+
+    fn begin_ray(&self, ray: &Ray, s: &mut Self::Scratch) {
+        s.clear();
+        if let Some((a, b)) = self.interval(ray.origin, ray.dir) {
+            s.push([a, b]);
+        }
+    }
+
+    fn intervals<'s>(&self, s: &'s Self::Scratch) -> &'s [[f32; 2]] {
+        s
+    }
+
+    fn extinction(&self, _: &Self::Scratch, _: f32, x: Vec3A) -> f32 {
+        self.sigma(x)
+    }
+
+    fn light_depths(&self, x: Vec3A) -> LightDepths {
+        if let Some(l) = &self.light {
+            return l.lookup(x);
+        }
+        let dirs = nephele::render::sky_light::directions();
+        let sun = self.depth(x, -self.sun_dir);
+        LightDepths {
+            sun,
+            sun_transmittance: (-sun).exp(),
+            sky: std::array::from_fn(|k| self.depth(x, dirs[k])),
+        }
+    }
+
+    fn step(&self) -> f32 {
+        self.voxel
+    }
+
+    fn max_extinction(&self) -> f32 {
+        self.max
+    }
+}
