@@ -6,6 +6,7 @@
 
 mod exr_support;
 
+mod builtin_scenes;
 use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
@@ -571,17 +572,8 @@ fn preview_cli_writes_frames_and_gif() {
 #[test]
 fn final_frame_alpha_lies_inside_the_target_silhouette() {
     use nephele::scene::{RenderOptions, Target, load_scene, load_target, shot};
-    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    for name in [
-        "duck-diffusion",
-        "duck-aggregation",
-        "torus-knot-aggregation",
-        "bunny-aggregation",
-        "horse-diffusion",
-        "cumulus-to-duck",
-    ] {
-        let path = repo.join("scenes").join(format!("{name}.ron"));
-        let scene = match load_scene(&path) {
+    for name in builtin_scenes::NAMES {
+        let scene = match load_scene(&builtin_scenes::path(name)) {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("skipping {name}: {e}");

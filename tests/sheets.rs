@@ -6,6 +6,8 @@
 //!
 //! `cargo test --release --test sheets -- --ignored --nocapture`
 
+mod builtin_scenes;
+
 use std::path::Path;
 
 use nephele::render::{output, render_frame};
@@ -38,16 +40,9 @@ fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::R
 #[ignore = "writes the picture sheets into renders/: see the module doc"]
 fn sheets() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for name in [
-        "duck-diffusion",
-        "duck-aggregation",
-        "torus-knot-aggregation",
-        "bunny-aggregation",
-        "horse-diffusion",
-        "cumulus-to-duck",
-    ] {
+    for name in builtin_scenes::NAMES {
         let pick = |n: u32| vec![(n / 5).max(1), (n * 11 / 20).max(1), n];
-        let Some(images) = frames(&repo.join(format!("scenes/{name}.ron")), &pick) else {
+        let Some(images) = frames(&builtin_scenes::path(name), &pick) else {
             continue;
         };
         let (w, h) = images[0].dimensions();

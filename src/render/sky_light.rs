@@ -159,11 +159,6 @@ impl SkyLight {
     pub fn delta(&self) -> f32 {
         self.delta
     }
-
-    /// The unit cell directions.
-    pub fn dirs(&self) -> &[Vec3A; SKY_DIRECTIONS] {
-        &self.dirs
-    }
 }
 
 /// The sky convolved with a phase-function kernel on a small latitude–longitude table (rows
