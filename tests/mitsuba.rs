@@ -304,7 +304,16 @@ fn mitsuba_full_comparison() {
         .unwrap_or(256);
     let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), grid_res, &dir);
     eprintln!("nephele: single scattering {ss:.3} s, with the MS approximation {ms:.3} s");
-    let picture = repo().join("renders/mitsuba-comparison.png");
+    // The README's pictures: renders/mitsuba-<scene>.png (the default scene's is
+    // renders/mitsuba-comparison.png).
+    let stem = Path::new(&scene)
+        .file_stem()
+        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    let picture = repo().join(if stem == "duck-diffusion" {
+        "renders/mitsuba-comparison.png".to_string()
+    } else {
+        format!("renders/mitsuba-{stem}.png")
+    });
     let json = compare(
         &py,
         &dir,
