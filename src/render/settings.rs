@@ -218,7 +218,7 @@ impl Quality {
             step_scale: 0.25,
             shadow_grid: 224,
             ms_octaves: 3,
-            optical_step: 0.05,
+            optical_step: 0.08,
             samples: 1,
         }
     }
@@ -229,7 +229,7 @@ impl Quality {
             step_scale: 0.6,
             shadow_grid: 48,
             ms_octaves: 2,
-            optical_step: 0.15,
+            optical_step: 0.2,
             samples: 1,
         }
     }
