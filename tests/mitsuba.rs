@@ -60,7 +60,14 @@ fn composite(s: &RenderSettings, f: &nephele::render::Frame) -> Vec<f32> {
     for y in 0..s.height {
         for x in 0..s.width {
             let i = (y * s.width + x) as usize;
-            let sky = dome.radiance(cam.pixel_ray(x, y).dir.into());
+            // The sky over the pixel's area (4×4 rays), as Mitsuba's box filter sees it: at
+            // the horizon one ray per pixel is a step that the reference does not have.
+            let mut sky = glam::Vec3::ZERO;
+            for k in 0..16 {
+                let (u, v) = ((k % 4) as f32 + 0.5, (k / 4) as f32 + 0.5);
+                let ray = cam.ray(x as f32 + u / 4.0, y as f32 + v / 4.0);
+                sky += dome.radiance(ray.dir.into()) / 16.0;
+            }
             let a = f.alpha[i];
             for c in 0..3 {
                 out.push(f.rgb[i][c] + (1.0 - a) * sky[c]);
@@ -161,7 +168,14 @@ fn write_inputs(
         &dir.join("nephele_grid_ss.f32"),
         composite(&s, &render_medium(&s, &dense)),
     );
-    let (sw, sh) = (512, 256);
+    // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map
+    // bilinearly, and a 256-row map blurred the horizon over ±7 pixels at 640×360 — behind the
+    // cloud's lower fringe that alone was 1.6 points of the backlit shot's 6.1 % (the blur is
+    // the reference's, not nephele's).
+    let sh = ((180.0 * s.height as f32 / s.camera.fov_deg).ceil() as usize)
+        .next_power_of_two()
+        .clamp(256, 2048);
+    let sw = 2 * sh;
     write_f32(&dir.join("sky.f32"), sky_map(&s, sw, sh));
     let sun_dir = s.sun.travel_dir();
     let tint = SkyDome::sun_tint(&s.sky, &s.sun);
