@@ -170,8 +170,8 @@ fn write_inputs(
     );
     // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map
     // bilinearly, and a 256-row map blurred the horizon over ±7 pixels at 640×360 — behind the
-    // cloud's lower fringe that alone was 1.6 points of the backlit shot's 6.1 % (the blur is
-    // the reference's, not nephele's).
+    // cloud's lower fringe that was 1.0 point of the backlit shot's 6.1 % (the blur is the
+    // reference's, not nephele's).
     let sh = ((180.0 * s.height as f32 / s.camera.fov_deg).ceil() as usize)
         .next_power_of_two()
         .clamp(256, 2048);
@@ -262,8 +262,8 @@ fn single_scattering_matches_mitsuba() {
     let json = compare(&py, &dir, 64, None, false);
     eprintln!("{json}");
     // A small run (160×90, a 96-cell grid, 64 spp; the full one, README, gives the quoted
-    // figures). It measures end to end 0.084, same grid 0.049, mean ratio 1.00 (MS luminance
-    // −4.5 %, base/top +0.029); the bars leave room for the reference's noise and catch a
+    // figures). It measures end to end 0.039, same grid 0.024, mean ratio 0.99 (MS luminance
+    // −1.2 %, base/top +0.039); the bars leave room for the reference's noise and catch a
     // regression of the light model (before the sky cells this run measured 0.205).
     let rmse = number(&json, "ss_rel_rmse");
     assert!(

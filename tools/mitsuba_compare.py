@@ -26,8 +26,9 @@ Output (stdout, JSON):
 With --picture PATH: a 2×2 sheet (nephele SS | Mitsuba SS / nephele MS | Mitsuba full).
 
 Usage: python3 tools/mitsuba_compare.py DIR [--spp 256] [--picture out.png]
-Needs `pip install mitsuba numpy`; uses the `llvm_ad_rgb` variant when LLVM ≥ 16 is
-installed, else `scalar_rgb` (same image, slower).
+Needs `pip install mitsuba numpy`; uses the `llvm_ad_rgb` variant when its kernels compile on
+this machine (tried in a child process, see `pick_variant`), else `scalar_rgb` (same image,
+slower).
 """
 import argparse
 import json

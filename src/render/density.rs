@@ -97,8 +97,9 @@ impl DensityParams {
 ///
 /// Linear rather than smoothstep because a voxel grid (the volume export, a renderer's density
 /// texture) reconstructs a linear profile exactly: smoothstep's quadratic start, interpolated
-/// linearly over the outermost voxel, came out 50 % too dense there (measured on the exported
-/// grids), which widened and brightened the backlit rim in other renderers.
+/// linearly over the outermost voxel, came out too dense there (the exported grid's fringe
+/// 20 % more opaque than the frame's), which widened and brightened the backlit rim in other
+/// renderers.
 #[inline]
 fn ramp(v: f32, w: f32) -> f32 {
     if w <= 0.0 {
