@@ -19,7 +19,7 @@ use crate::rng::{Stream, item_rng};
 
 /// Finest billow wavelength in pixels of the frame (at the camera's look-at distance): finer
 /// octaves would only alias at one sample per pixel.
-pub const FINEST_BILLOW_PIXELS: f32 = 4.0;
+pub const FINEST_BILLOW_PIXELS: f32 = 3.0;
 
 /// Smallest `A` the renderer gives a blob: the shell between a blob's iso-surface and the end
 /// of its support must hold the billows' tops (at the fitted minimum, 0.05, it is 2 % of the

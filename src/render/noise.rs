@@ -101,11 +101,11 @@ pub const MAX_OCTAVES: usize = 8;
 /// Share of an octave's depth that lies below the surface: a billow pushes the surface out by
 /// up to `(1 − CREASE)·a_k` on its top and cuts in by up to `CREASE·a_k` in its creases. Near
 /// the mean of [`billow`] (≈ 0.5), so the displaced cloud keeps the model's size on average.
-pub const CREASE: f32 = 0.6;
+pub const CREASE: f32 = 0.65;
 
 /// Ratios `F / λ` (local feature size over an octave's wavelength) between which an octave
-/// fades in: absent on a part smaller than 0.3 of its wavelength, full on one 0.8 as large.
-const FADE_IN: (f32, f32) = (0.3, 0.8);
+/// fades in: absent on a part smaller than 0.2 of its wavelength, full on one 0.6 as large.
+const FADE_IN: (f32, f32) = (0.2, 0.6);
 
 /// The cumulus's billows: octaves of [`billow`] whose wavelengths are fixed in world units
 /// (anchored to each blob's frame by the caller) and whose depths are in proportion to their

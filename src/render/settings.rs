@@ -122,7 +122,7 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.45,
+            amplitude: 0.5,
             frequency: 5.0,
             octaves: 8,
             evolve: 0.0,
