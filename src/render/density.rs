@@ -64,6 +64,11 @@ pub(super) struct Hit {
     pub(super) nd: Vec3A,
 }
 
+/// Deepest a crease may cut, as a fraction of the local feature size `F` (softly: a crease of
+/// depth `c` cuts `c·m/(c + m)`, `m = MAX_CUT·F`), so legs, necks and the knot's tube keep
+/// their width while the body's billows cut in freely.
+pub(super) const MAX_CUT: f32 = 0.35;
+
 /// Density parameters, already in world units.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct DensityParams {
@@ -106,7 +111,9 @@ impl DensityParams {
             d + if push > 0.0 {
                 push * reach / (push + reach).max(1e-30)
             } else {
-                push
+                // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
+                let cut = MAX_CUT * feature;
+                push * cut / (cut - push).max(1e-30)
             }
         } else {
             d

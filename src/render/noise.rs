@@ -256,13 +256,14 @@ mod tests {
         // 0.2 / 2.03^k ≥ 0.01: k ≤ 4.
         assert_eq!(b.octaves(), 5);
         assert_eq!(b.coarsened(0.05).octaves(), 2);
-        // A part of size 0.028 gets no octave of wavelength ≥ 0.028 / FADE_IN.0 (≈ 0.093),
-        // part of those between, and depths in proportion to wavelength where full.
-        let (d, n) = b.depths(0.028);
+        // A part just below FADE_IN.0 of octave 1's wavelength gets neither octave 0 nor 1,
+        // part of octave 2, and depths in proportion to wavelength where full.
+        let f = 0.99 * FADE_IN.0 * 0.2 / LACUNARITY;
+        let (d, n) = b.depths(f);
         assert_eq!(d[0], 0.0);
         assert_eq!(d[1], 0.0);
-        assert!(d[2] > 0.0 && d[2] < 0.25 * 0.2 / 2.03f32.powi(2));
-        assert!((d[4] / d[3] - 1.0 / 2.03).abs() < 1e-5);
+        assert!(d[2] > 0.0 && d[2] < 0.25 * 0.2 / LACUNARITY.powi(2));
+        assert!((d[4] / d[3] - 1.0 / LACUNARITY).abs() < 1e-5);
         assert_eq!(n, 5);
         // No feature, no billows; none without amplitude.
         assert_eq!(b.total_depth(0.0), 0.0);
