@@ -267,6 +267,8 @@ pub fn render_shot(
                     settings: &settings,
                     blobs: &blobs,
                     voxel,
+                    plan: &prep.plan,
+                    time: prep.plan.timeline().time(k as usize),
                 };
                 write_frame(scene, &setup.dir, frame, &out, opts)?;
             }
@@ -341,6 +343,10 @@ struct FrameOutput<'a> {
     blobs: &'a [Blob],
     /// Voxel size of the density grids.
     voxel: f64,
+    /// The animation (for the velocity grid).
+    plan: &'a Plan,
+    /// The frame's time in seconds.
+    time: f64,
 }
 
 /// Write one frame's files atomically; the blob dump (if any) is written last. The density
@@ -357,6 +363,8 @@ fn write_frame(
         settings,
         blobs,
         voxel,
+        plan,
+        time,
     } = *out;
     let paths = frame_paths(scene, dir, frame, opts.dump_blobs);
     let io = |path: &Path| {
@@ -387,8 +395,13 @@ fn write_frame(
                 let g = grid.as_ref().expect("sampled above");
                 let uuid_seed =
                     crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
-                crate::export::write_vdb(path, g, crate::export::GRID_NAME, uuid_seed)
-                    .map_err(io(path))?
+                let field = crate::animate::VelocityField::of_plan(plan, time);
+                let vel = crate::export::sample_velocity(g, &field);
+                let grids = [
+                    crate::export::VdbGrid::fog(crate::export::GRID_NAME, g),
+                    crate::export::velocity_vdb_grid(&vel, scene.file.shot.fps),
+                ];
+                crate::export::write_vdb_grids(path, &grids, uuid_seed).map_err(io(path))?
             }
             super::Format::Vol => {
                 let g = grid.as_ref().expect("sampled above");
