@@ -147,7 +147,7 @@ fn openvdb_grid(path: &Path, name: &str) -> Option<(serde_json::Value, Voxels)> 
 #[test]
 fn openvdb_reads_back_the_renderer_density() {
     let (settings, blobs) = (settings(), cloud());
-    let medium = BlobMedium::without_light(&settings, &blobs);
+    let medium = BlobMedium::new(&settings, &blobs);
     let (lo, hi) = medium.bounds().unwrap();
     // Small enough that the cloud spans several Internal-4 nodes (128 voxels each).
     let voxel = 0.015;
