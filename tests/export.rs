@@ -132,7 +132,7 @@ fn openvdb_read(path: &Path) -> Option<Dump> {
 #[test]
 fn openvdb_reads_back_the_renderer_density() {
     let (settings, blobs) = (settings(), cloud());
-    let medium = BlobMedium::without_light(&settings, &blobs);
+    let medium = BlobMedium::new(&settings, &blobs);
     let (lo, hi) = medium.bounds().unwrap();
     // Small enough that the cloud spans several Internal-4 nodes (128 voxels each).
     let voxel = 0.015;

@@ -27,8 +27,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use nephele::render::camera::CameraRays;
-use nephele::render::shading::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
-use nephele::render::{BlobMedium, RenderSettings, SkyDome, render_medium};
+use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
+use nephele::render::{BlobMedium, LightGrid, RenderSettings, SkyDome, render_medium};
 use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// The Python interpreter with mitsuba, if any.
@@ -146,7 +146,8 @@ fn write_inputs(
     for (idx, ms) in [(0, false), (1, true)] {
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
-        let f = render_medium(&s, &BlobMedium::new(&s, &blobs));
+        let m = BlobMedium::new(&s, &blobs);
+        let f = render_medium(&s, &m, &LightGrid::for_frame(&s, &m));
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"
@@ -158,16 +159,19 @@ fn write_inputs(
     // The light transport alone: nephele's integrator on Mitsuba's very grid, with a light grid
     // of the frame's quality (or, with NEPHELE_MITSUBA_EXACT, depths marched exactly: slow).
     s.cloud.multiple_scattering = false;
-    let dense = grid_medium::DenseGrid::new(&grid, s.sun.travel_dir().into());
-    let dense = if std::env::var("NEPHELE_MITSUBA_EXACT").is_ok() {
-        dense
+    let dense = grid_medium::DenseGrid::new(&grid);
+    let light_dir: glam::Vec3A = s.sun.travel_dir().into();
+    let same_grid = if std::env::var("NEPHELE_MITSUBA_EXACT").is_ok() {
+        render_medium(
+            &s,
+            &dense,
+            &grid_medium::ExactLights::new(&dense, light_dir),
+        )
     } else {
-        dense.with_light_grid(s.quality.shadow_grid)
+        let lights = LightGrid::build(&dense, light_dir, s.quality.shadow_grid);
+        render_medium(&s, &dense, &lights)
     };
-    write_f32(
-        &dir.join("nephele_grid_ss.f32"),
-        composite(&s, &render_medium(&s, &dense)),
-    );
+    write_f32(&dir.join("nephele_grid_ss.f32"), composite(&s, &same_grid));
     // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map
     // bilinearly, and a 256-row map blurred the horizon over ±7 pixels at 640×360 — behind the
     // cloud's lower fringe that was 1.0 point of the backlit shot's 6.1 % (the blur is the

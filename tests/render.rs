@@ -11,10 +11,11 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
-use nephele::render::shading::cloud_phase;
+use nephele::render::phase::cloud_phase;
 use nephele::render::{
-    BlobMedium, Camera, CloudMaterial, Homogeneous, Noise, Quality, RenderSettings, Shape, Sky,
-    Sun, output, render_frame, render_medium, render_medium_unshaded,
+    BlobMedium, Camera, CloudMaterial, Homogeneous, HomogeneousLights, LightGrid, Lights, Noise,
+    Quality, RenderSettings, Shape, Sky, Sun, output, render_frame, render_medium,
+    render_medium_unshaded,
 };
 use rand::{RngExt, SeedableRng};
 
@@ -104,7 +105,6 @@ fn uniform_ball_coverage_matches_beer_lambert() {
             radius: r,
         },
         sigma_t: sigma,
-        sun_dir: Vec3A::NEG_Y,
         step: 0.05,
     };
     let frame = render_medium_unshaded(&s, &medium);
@@ -206,10 +206,13 @@ fn thin_slab_single_scattering_matches_closed_form() {
             far: d,
         },
         sigma_t: sigma,
-        sun_dir: Vec3A::Z,
         step: d / 16.0,
     };
-    let frame = render_medium(&s, &medium);
+    let lights = HomogeneousLights {
+        medium,
+        sun_dir: Vec3A::Z,
+    };
+    let frame = render_medium(&s, &medium, &lights);
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 9, 9);
     for (x, y) in [(4, 4), (0, 0), (8, 3), (2, 7)] {
         let dir = cam.pixel_ray(x, y).dir;
@@ -346,18 +349,19 @@ fn bench_frame_times() {
         );
         let prep = median(
             (0..runs)
-                .map(|_| time(|| BlobMedium::without_light(&s, &blobs)).1)
-                .collect(),
-        );
-        let lit = median(
-            (0..runs)
                 .map(|_| time(|| BlobMedium::new(&s, &blobs)).1)
                 .collect(),
         );
         let m = BlobMedium::new(&s, &blobs);
+        let light = median(
+            (0..runs)
+                .map(|_| time(|| LightGrid::for_frame(&s, &m)).1)
+                .collect(),
+        );
+        let grid = LightGrid::for_frame(&s, &m);
         let march = median(
             (0..runs)
-                .map(|_| time(|| render_medium(&s, &m)).1)
+                .map(|_| time(|| render_medium(&s, &m, &grid)).1)
                 .collect(),
         );
         let dens = median(
@@ -366,8 +370,7 @@ fn bench_frame_times() {
                 .collect(),
         );
         println!(
-            "{name}: median {total:.3} s/frame = prepare {prep:.3} + light grid {:.3} + march/density {dens:.3} + shading {:.3} (parts timed separately)",
-            lit - prep,
+            "{name}: median {total:.3} s/frame = prepare {prep:.3} + light grid {light:.3} + march/density {dens:.3} + shading {:.3} (parts timed separately)",
             march - dens,
         );
     }
@@ -513,7 +516,7 @@ fn light_debug() {
     let mut s = settings(640, 360, Quality::final_frame());
     s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
     let m = BlobMedium::new(&s, &blobs);
-    let g = m.light_grid().unwrap();
+    let g = LightGrid::for_frame(&s, &m).unwrap();
     for x in [-1.2f32, -0.9, -0.6, -0.3, 0.0, 0.3, 0.6, 0.9] {
         println!("x {x}: {:?}", g.lookup(Vec3A::new(x, 0.0, 0.0)));
     }
@@ -704,6 +707,7 @@ fn light_grid_against_exact_march() {
         s.quality.shadow_grid = res;
         s.length_scale = model.source.bounds.diagonal() as f32;
         let m = BlobMedium::new(&s, &model.blobs);
+        let grid = LightGrid::for_frame(&s, &m);
         let sun = Vec3A::from(s.sun.travel_dir());
         let (lo, hi) = m.bounds().unwrap();
         let all = Frustum {
@@ -740,7 +744,7 @@ fn light_grid_against_exact_march() {
                     t += step;
                 }
             }
-            let g = m.light_depths(p).sun as f64;
+            let g = grid.depths(p).sun as f64;
             te += sigma0 as f64 * (-tau).exp();
             tg += sigma0 as f64 * (-g).exp();
             wsum += sigma0 as f64;

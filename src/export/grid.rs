@@ -8,7 +8,8 @@
 //!
 //! Sampling: the index box is cut into columns of 8×8 voxel columns (one OpenVDB leaf across);
 //! per column one [`Medium::begin_tile`] with a frustum around it, then per voxel column one ray
-//! along +Z and [`Medium::extinction`] at every voxel centre inside the ray's intervals. Leaves
+//! along +Z and [`Medium::extinction`] at every voxel centre inside the ray's intervals (the
+//! renderer's lattice sampler, [`crate::render::lattice`], which the light grid uses too). Leaves
 //! (8³ voxels) with no positive value are dropped. Columns run in parallel with rayon; every
 //! value is computed independently of the others, so the grid is identical at any thread count.
 
@@ -16,7 +17,8 @@ use glam::Vec3A;
 use rayon::prelude::*;
 
 use crate::render::Medium;
-use crate::render::camera::{Frustum, Ray};
+use crate::render::camera::Ray;
+use crate::render::lattice::{Columns, sample_bundle};
 
 /// Voxels along one side of a leaf (OpenVDB's `LeafNode` log2 dimension 3).
 pub const LEAF_DIM: i32 = 8;
@@ -234,34 +236,40 @@ fn sample_column<M: Medium>(
     let centre = |i: usize, a: usize| spec.translation[a] + h * i as f64;
     // Rays start one voxel below the first voxel centre: voxel k sits at t = (k + 1)·h.
     let z_start = centre(0, 2) - h;
-    // The frusta are padded by half a voxel so that rounding cannot cull a blob at an edge.
-    let pad = 0.5 * h;
-    let lo = [centre(x0, 0) - pad, centre(y0, 1) - pad];
-    let hi = [centre(x1 - 1, 0) + pad, centre(y1 - 1, 1) + pad];
-    medium.begin_tile(
-        &column_frustum(lo, hi, z_start, h * (nz + 1) as f64),
-        scratch,
-    );
+    let columns = Columns {
+        start: glam::DVec3::new(centre(0, 0), centre(0, 1), z_start),
+        u: glam::DVec3::X,
+        v: glam::DVec3::Y,
+        dir: glam::DVec3::Z,
+        h,
+        length: h * (nz + 1) as f64,
+    };
     buf.candidates.clear();
     buf.candidates.resize(nz.div_ceil(leaf), [0; 8]);
-    for i in x0..x1 {
-        for j in y0..y1 {
-            let ray = Ray {
-                origin: Vec3A::new(centre(i, 0) as f32, centre(j, 1) as f32, z_start as f32),
-                dir: Vec3A::Z,
-            };
-            medium.begin_ray(&ray, scratch);
+    let ray = |i: usize, j: usize| Ray {
+        origin: Vec3A::new(centre(i, 0) as f32, centre(j, 1) as f32, z_start as f32),
+        dir: Vec3A::Z,
+    };
+    let candidates = &mut buf.candidates;
+    sample_bundle(
+        medium,
+        scratch,
+        &columns,
+        x0..x1,
+        y0..y1,
+        ray,
+        |s, i, j, _| {
             let within = ((i - x0) << 6) | ((j - y0) << 3);
-            for iv in medium.intervals(scratch) {
+            for iv in medium.intervals(s) {
                 let k0 = ((iv[0] as f64 / h).floor() as i64 - 2).max(0);
                 let k1 = ((iv[1] as f64 / h).ceil() as i64).min(nz as i64 - 1);
                 for k in k0..=k1 {
                     let (k, bit) = (k as usize, within | (k as usize % leaf));
-                    buf.candidates[k / leaf][bit >> 6] |= 1 << (bit & 63);
+                    candidates[k / leaf][bit >> 6] |= 1 << (bit & 63);
                 }
             }
-        }
-    }
+        },
+    );
     let mut leaves = Vec::new();
     for (lz, marks) in buf.candidates.iter().enumerate() {
         if marks.iter().all(|&w| w == 0) {
@@ -307,39 +315,6 @@ pub fn point_extinction<M: Medium>(medium: &M, scratch: &mut M::Scratch, p: Vec3
     }
 }
 
-/// A conservative frustum around the rays `(x, y, z_start) + t·Z`, `[x, y] ∈ [lo, hi]`,
-/// `0 ≤ t ≤ length`: a pyramid whose sides pass through the rectangle's edges at `z_start`, with
-/// its apex `64·length` below, so it is almost a prism (1.6 % wider at the far end) and culls
-/// nearly as tightly as the column itself. Built in f64, so the nearly vertical side normals are
-/// accurate.
-fn column_frustum(lo: [f64; 2], hi: [f64; 2], z_start: f64, length: f64) -> Frustum {
-    use glam::DVec3;
-    let apex = DVec3::new(
-        0.5 * (lo[0] + hi[0]),
-        0.5 * (lo[1] + hi[1]),
-        z_start - 64.0 * length,
-    );
-    let corner = |x: f64, y: f64| DVec3::new(x, y, z_start) - apex;
-    let c = [
-        corner(lo[0], lo[1]),
-        corner(hi[0], lo[1]),
-        corner(hi[0], hi[1]),
-        corner(lo[0], hi[1]),
-    ];
-    let mut planes = [Vec3A::ZERO; 4];
-    for (e, plane) in planes.iter_mut().enumerate() {
-        let n = c[e].cross(c[(e + 1) % 4]).normalize_or_zero();
-        // Inward: toward the pyramid's axis (+Z from the apex).
-        let n = if n.z < 0.0 { -n } else { n };
-        *plane = Vec3A::new(n.x as f32, n.y as f32, n.z as f32);
-    }
-    Frustum {
-        apex: Vec3A::new(apex.x as f32, apex.y as f32, apex.z as f32),
-        forward: Vec3A::Z,
-        planes,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -352,7 +327,6 @@ mod tests {
                 radius,
             },
             sigma_t: 2.5,
-            sun_dir: Vec3A::NEG_Y,
             step: 0.01,
         }
     }

@@ -63,8 +63,7 @@ pub fn frame_grid(
     blobs: &[Blob],
     voxel: f64,
 ) -> Result<DensityGrid, GridError> {
-    // Extinction does not depend on the light grid, so it is not built.
-    let medium = BlobMedium::without_light(settings, blobs);
+    let medium = BlobMedium::new(settings, blobs);
     match medium.bounds() {
         Some((lo, hi)) => sample_medium(&medium, lo, hi, voxel),
         None if voxel.is_finite() && voxel > 0.0 => Ok(DensityGrid::empty(voxel)),

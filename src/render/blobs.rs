@@ -1,5 +1,5 @@
-//! The blob cloud as a participating medium: f32 SoA blobs, ray gathering, the noisy density
-//! and the per-frame light grid.
+//! The blob cloud as a participating medium: f32 SoA blobs, ray gathering and the noisy
+//! density (the light grid is built from it separately, [`super::light_grid`]).
 //!
 //! In: a frame's [`Blob`]s (f64; slice index = identity) and [`RenderSettings`]. Out:
 //! [`BlobMedium`], a [`Medium`] for the integrator.
@@ -8,12 +8,10 @@
 
 use glam::{Mat3A, Vec3A};
 use rand::RngExt;
-use rayon::prelude::*;
 
-use super::camera::{Frustum, Ray};
+use super::camera::{Frustum, Ray, ray_ellipsoid};
 use super::density::{DensityParams, Hit, density};
-use super::light_grid::{GridShape, LightGrid};
-use super::medium::{LightDepths, Medium};
+use super::medium::Medium;
 use super::noise::Octaves;
 use super::settings::RenderSettings;
 use crate::blobby::{Blob, THRESHOLD};
@@ -23,29 +21,6 @@ use crate::rng::{Stream, item_rng};
 /// blob (a leg, a neck) in two.
 pub const EROSION_CAP: f32 = 0.1;
 
-/// Parameters `(t0, t1)` with `t0 ≥ 0` where the ray `o + t·d` is inside the unit ball
-/// `|p| < 1`; `o` and `d` are in the ellipsoid's unit frame (`d` need not be unit length, and
-/// `t` is then the same parameter as in world space). `None` on a miss, a tangent touch, a ball
-/// entirely behind the origin, or a zero direction (its own branch: the ray does not move).
-#[inline]
-pub fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f32, f32)> {
-    let a = local_dir.length_squared();
-    if a <= f32::MIN_POSITIVE {
-        return None;
-    }
-    let b = local_origin.dot(local_dir);
-    let c = local_origin.length_squared() - 1.0;
-    let disc = b * b - a * c;
-    if disc <= 0.0 {
-        return None;
-    }
-    // Numerically stable roots: q = −(b + sign(b)√disc), t = q/a and c/q.
-    let q = -(b + disc.sqrt().copysign(b));
-    let (r0, r1) = (q / a, if q != 0.0 { c / q } else { q / a });
-    let (t0, t1) = (r0.min(r1), r0.max(r1));
-    (t1 > 0.0).then_some((t0.max(0.0), t1))
-}
-
 /// Per-thread scratch of [`BlobMedium`].
 #[derive(Debug, Default)]
 pub struct BlobScratch {
@@ -54,7 +29,7 @@ pub struct BlobScratch {
     intervals: Vec<[f32; 2]>,
 }
 
-/// The blob cloud of one frame (live blobs only, SoA, f32) with its light grid.
+/// The blob cloud of one frame (live blobs only, SoA, f32).
 #[derive(Clone, Debug)]
 pub struct BlobMedium {
     center: Vec<Vec3A>,
@@ -72,20 +47,12 @@ pub struct BlobMedium {
     hi: Vec<Vec3A>,
     params: DensityParams,
     step: f32,
-    grid: Option<LightGrid>,
 }
 
 impl BlobMedium {
-    /// Prepare `blobs` for rendering with `settings`: convert, derive the step and build the
-    /// light grid. Dead blobs (`B = 0`, a zero or non-finite size) are dropped here.
+    /// Prepare `blobs` for rendering with `settings`: convert and derive the step. Dead blobs
+    /// (`B = 0`, a zero or non-finite size) are dropped here.
     pub fn new(settings: &RenderSettings, blobs: &[Blob]) -> BlobMedium {
-        let mut m = BlobMedium::without_light(settings, blobs);
-        m.grid = m.build_light_grid(settings);
-        m
-    }
-
-    /// Like [`BlobMedium::new`] but with no light grid (all light depths 0): for profiling.
-    pub fn without_light(settings: &RenderSettings, blobs: &[Blob]) -> BlobMedium {
         let length = settings.length_scale.max(1e-12);
         let noise = settings.cloud.noise;
         let freq = noise.frequency / length;
@@ -107,7 +74,6 @@ impl BlobMedium {
                 inv_threshold: (1.0 / THRESHOLD) as f32,
             },
             step: 0.0,
-            grid: None,
         };
         let mut radii = Vec::new();
         for (index, blob) in blobs.iter().enumerate() {
@@ -200,11 +166,6 @@ impl BlobMedium {
         Some((lo, hi))
     }
 
-    /// The light grid (`None` without live blobs or for [`BlobMedium::without_light`]).
-    pub fn light_grid(&self) -> Option<&LightGrid> {
-        self.grid.as_ref()
-    }
-
     /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
     /// merged spans into `intervals`.
     fn gather(&self, candidates: &[u32], ray: &Ray, hits: &mut Vec<Hit>, ivs: &mut Vec<[f32; 2]>) {
@@ -243,52 +204,6 @@ impl BlobMedium {
     #[inline]
     fn density(&self, hits: &[Hit], t: f32) -> f32 {
         density(&self.params, hits, t).0
-    }
-
-    /// Sample `σ_t` on the light grid's nodes (rows along +x are rays) and sweep the depths.
-    fn build_light_grid(&self, settings: &RenderSettings) -> Option<LightGrid> {
-        let (lo, hi) = self.bounds()?;
-        let shape = GridShape::covering(lo, hi, settings.quality.shadow_grid);
-        let [nx, ny, _] = shape.dims;
-        let mut sigma = vec![0.0f32; shape.len()];
-        let (h, origin) = (shape.h, shape.origin);
-        sigma.par_chunks_mut(nx * ny).enumerate().for_each_init(
-            BlobScratch::default,
-            |s, (k, slice)| {
-                let z = origin.z + h * k as f32;
-                s.tile.clear();
-                s.tile.extend(
-                    (0..self.len() as u32)
-                        .filter(|&i| self.lo[i as usize].z <= z && z <= self.hi[i as usize].z),
-                );
-                let mut row_candidates = Vec::with_capacity(s.tile.len());
-                for j in 0..ny {
-                    let y = origin.y + h * j as f32;
-                    row_candidates.clear();
-                    row_candidates.extend(
-                        s.tile
-                            .iter()
-                            .copied()
-                            .filter(|&i| self.lo[i as usize].y <= y && y <= self.hi[i as usize].y),
-                    );
-                    let ray = Ray {
-                        origin: Vec3A::new(origin.x, y, z),
-                        dir: Vec3A::X,
-                    };
-                    self.gather(&row_candidates, &ray, &mut s.hits, &mut s.intervals);
-                    let row = &mut slice[j * nx..(j + 1) * nx];
-                    for iv in &s.intervals {
-                        let first = (iv[0] / h).ceil() as usize;
-                        let last = ((iv[1] / h).floor() as usize).min(nx - 1);
-                        for (i, v) in row.iter_mut().enumerate().take(last + 1).skip(first) {
-                            *v = self.density(&s.hits, i as f32 * h);
-                        }
-                    }
-                }
-            },
-        );
-        let sun = Vec3A::from(settings.sun.travel_dir());
-        Some(LightGrid::build(shape, &sigma, sun))
     }
 }
 
@@ -329,11 +244,8 @@ impl Medium for BlobMedium {
         density(&self.params, &s.hits, t)
     }
 
-    #[inline]
-    fn light_depths(&self, x: Vec3A) -> LightDepths {
-        self.grid
-            .as_ref()
-            .map_or(LightDepths::ZERO, |g| g.lookup(x))
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        BlobMedium::bounds(self)
     }
 
     fn step(&self) -> f32 {
@@ -349,23 +261,6 @@ impl Medium for BlobMedium {
 mod tests {
     use super::super::density::MAX_ACTIVE;
     use super::*;
-
-    #[test]
-    fn ray_ellipsoid_cases() {
-        // Through the centre from outside.
-        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z).unwrap();
-        assert!((t0 - 2.0).abs() < 1e-6 && (t1 - 4.0).abs() < 1e-6);
-        // Non-unit direction: t scales inversely.
-        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z * 2.0).unwrap();
-        assert!((t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-6);
-        // From inside: starts at 0.
-        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.5, 0.0, 0.0), Vec3A::X).unwrap();
-        assert!(t0 == 0.0 && (t1 - 0.5).abs() < 1e-6);
-        // Behind, miss, zero direction.
-        assert!(ray_ellipsoid(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z).is_none());
-        assert!(ray_ellipsoid(Vec3A::new(0.0, 1.5, -3.0), Vec3A::Z).is_none());
-        assert!(ray_ellipsoid(Vec3A::ZERO, Vec3A::ZERO).is_none());
-    }
 
     #[test]
     fn density_is_finite_under_more_overlapping_blobs_than_the_active_list_holds() {
@@ -402,7 +297,7 @@ mod tests {
             time: 0.0,
             quality: Quality::final_frame(),
         };
-        let m = BlobMedium::without_light(&settings, &blobs);
+        let m = BlobMedium::new(&settings, &blobs);
         let ray = Ray {
             origin: Vec3A::new(0.0, 0.0, -5.0),
             dir: Vec3A::Z,

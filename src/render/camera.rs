@@ -3,7 +3,8 @@
 //! In: [`Camera`] (look-at, vertical field of view) and the image size. Out: unit ray
 //! directions through pixel positions (pixel `(x, y)` covers `[x, x+1) × [y, y+1)`, top row
 //! first, +Y up, right-handed: the camera looks down its −Z), and [`Frustum`]s bounding the
-//! rays of a tile, used to cull blobs once per tile.
+//! rays of a tile, used to cull blobs once per tile; and the ray–ellipsoid intersection the
+//! media use.
 
 use glam::Vec3A;
 
@@ -24,6 +25,29 @@ impl Ray {
     pub fn at(&self, t: f32) -> Vec3A {
         self.origin + self.dir * t
     }
+}
+
+/// Parameters `(t0, t1)` with `t0 ≥ 0` where the ray `o + t·d` is inside the unit ball
+/// `|p| < 1`; `o` and `d` are in the ellipsoid's unit frame (`d` need not be unit length, and
+/// `t` is then the same parameter as in world space). `None` on a miss, a tangent touch, a ball
+/// entirely behind the origin, or a zero direction (its own branch: the ray does not move).
+#[inline]
+pub fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f32, f32)> {
+    let a = local_dir.length_squared();
+    if a <= f32::MIN_POSITIVE {
+        return None;
+    }
+    let b = local_origin.dot(local_dir);
+    let c = local_origin.length_squared() - 1.0;
+    let disc = b * b - a * c;
+    if disc <= 0.0 {
+        return None;
+    }
+    // Numerically stable roots: q = −(b + sign(b)√disc), t = q/a and c/q.
+    let q = -(b + disc.sqrt().copysign(b));
+    let (r0, r1) = (q / a, if q != 0.0 { c / q } else { q / a });
+    let (t0, t1) = (r0.min(r1), r0.max(r1));
+    (t1 > 0.0).then_some((t0.max(0.0), t1))
 }
 
 /// The camera's orthonormal frame and image-plane scale.
@@ -137,6 +161,23 @@ impl Frustum {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    #[test]
+    fn ray_ellipsoid_cases() {
+        // Through the centre from outside.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z).unwrap();
+        assert!((t0 - 2.0).abs() < 1e-6 && (t1 - 4.0).abs() < 1e-6);
+        // Non-unit direction: t scales inversely.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.0, 0.0, -3.0), Vec3A::Z * 2.0).unwrap();
+        assert!((t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-6);
+        // From inside: starts at 0.
+        let (t0, t1) = ray_ellipsoid(Vec3A::new(0.5, 0.0, 0.0), Vec3A::X).unwrap();
+        assert!(t0 == 0.0 && (t1 - 0.5).abs() < 1e-6);
+        // Behind, miss, zero direction.
+        assert!(ray_ellipsoid(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z).is_none());
+        assert!(ray_ellipsoid(Vec3A::new(0.0, 1.5, -3.0), Vec3A::Z).is_none());
+        assert!(ray_ellipsoid(Vec3A::ZERO, Vec3A::ZERO).is_none());
+    }
 
     #[test]
     fn centre_pixel_looks_at_target_and_rows_go_down() {

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use super::Frame;
 use super::camera::{CameraRays, Ray};
+use super::lights::{Lights, Unshadowed};
 use super::medium::Medium;
 use super::settings::RenderSettings;
 use super::shading::Shading;
@@ -52,18 +53,28 @@ struct PixelResult {
     depth: f32,
 }
 
-/// Render `medium` as seen by `settings.camera`: full shading.
-pub fn render_medium<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
-    render_tiles::<M, true>(settings, medium)
+/// Render `medium` as seen by `settings.camera`, lit through `lights` (usually the light grid
+/// of this medium, [`super::light_grid::LightGrid`]; any other, e.g. one built at another
+/// time, works as well): full shading.
+pub fn render_medium<M: Medium, L: Lights>(
+    settings: &RenderSettings,
+    medium: &M,
+    lights: &L,
+) -> Frame {
+    render_tiles::<M, L, true>(settings, medium, lights)
 }
 
 /// Coverage and depth only (RGB stays 0): the same march without lighting, for profiling the
 /// cost of shading and for coverage tests.
 pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
-    render_tiles::<M, false>(settings, medium)
+    render_tiles::<M, Unshadowed, false>(settings, medium, &Unshadowed)
 }
 
-fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium: &M) -> Frame {
+fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
+    settings: &RenderSettings,
+    medium: &M,
+    lights: &L,
+) -> Frame {
     let (w, h) = (settings.width, settings.height);
     let cam = CameraRays::new(&settings.camera, w, h);
     let shading = Shading::new(settings);
@@ -86,7 +97,15 @@ fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium:
                         let pixel = y as u64 * w as u64 + x as u64;
                         let mut rng = item_rng(seed, Stream::Render, pixel);
                         let mut trace = |ray: &Ray, jitter: f32| {
-                            march::<M, SHADE>(medium, scratch, &shading, ray, jitter, optical_step)
+                            march::<M, L, SHADE>(
+                                medium,
+                                lights,
+                                &shading,
+                                scratch,
+                                ray,
+                                jitter,
+                                optical_step,
+                            )
                         };
                         if samples == 1 {
                             let ray = cam.pixel_ray(x, y);
@@ -164,10 +183,11 @@ fn render_tiles<M: Medium, const SHADE: bool>(settings: &RenderSettings, medium:
 /// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
 /// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
 #[inline]
-fn march<M: Medium, const SHADE: bool>(
+fn march<M: Medium, L: Lights, const SHADE: bool>(
     medium: &M,
-    scratch: &mut M::Scratch,
+    lights: &L,
     shading: &Shading,
+    scratch: &mut M::Scratch,
     ray: &Ray,
     jitter: f32,
     optical_step: f32,
@@ -224,8 +244,8 @@ fn march<M: Medium, const SHADE: bool>(
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());
             if let Some(w) = &weights {
-                let depths = medium.light_depths(x);
-                rgb += shading.in_scattered(w, &depths) * (absorbed * shading.albedo);
+                let depths = lights.depths(x);
+                rgb += shading.in_scattered(w, &depths).total() * (absorbed * shading.albedo);
             }
             tau += sigma * len;
             depth_sum += t * absorbed;

@@ -1,64 +1,30 @@
-//! The per-frame light-transmittance grid: optical depth toward the sun and toward each sky
-//! cell ([`super::sky_light`]) on the nodes of a regular grid over the cloud, so shading a march
+//! The per-frame light grid, where the renderer computes how much sunlight and skylight reaches
+//! each point of the cloud: optical depth toward the sun ([`SunGrid`]) and toward each sky cell
+//! ([`super::sky_light`]) on the nodes of regular grids over the cloud, so shading a march
 //! sample costs one trilinear lookup instead of secondary marches.
 //!
-//! In: extinction `σ_t` sampled on the grid nodes (filled by the medium) and the sun direction.
-//! Out: [`LightGrid::lookup`] → [`LightDepths`] anywhere (clamped to the grid).
+//! In: any [`Medium`] (its extinction sampled on the grid nodes through the medium's own rays,
+//! [`super::lattice`]) and the sun direction. Out: [`LightGrid`], a [`Lights`] — the depths
+//! anywhere (clamped to the grid). The grid may light the march through another medium than
+//! the one it was built from (motion blur: one grid at the frame's time).
 //!
-//! Each depth is built by one sweep through the grid along the light's dominant axis: a node's
+//! Each sky depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
 //! fractional offset is the same for every node) plus the trapezoid of `σ_t` over the step.
 //! The repeated bilinear interpolation blurs shadows by about a cell, which suits clouds.
 
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 
-use super::medium::LightDepths;
+use super::lattice::{Columns, GridShape, sample_bundle, trilinear};
+use super::lights::{LightDepths, Lights};
+use super::medium::Medium;
+use super::settings::RenderSettings;
 use super::sky_light::{SKY_DIRECTIONS, directions};
 use super::sun_grid::SunGrid;
 
-/// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
-/// `i + nx·(j + ny·k)`.
-#[derive(Clone, Debug)]
-pub struct GridShape {
-    /// Position of node (0, 0, 0).
-    pub origin: Vec3A,
-    /// Node spacing (cubic cells).
-    pub h: f32,
-    /// Node counts along x, y, z (each ≥ 2).
-    pub dims: [usize; 3],
-}
-
-impl GridShape {
-    /// A grid covering `[lo, hi]` padded by one cell on every side, with about `res` cells on
-    /// the longest side (`res ≥ 2`).
-    pub fn covering(lo: Vec3A, hi: Vec3A, res: u32) -> GridShape {
-        let size = (hi - lo).max(Vec3A::splat(1e-6));
-        let h = size.max_element() / res.max(2) as f32;
-        let origin = lo - Vec3A::splat(h);
-        let n = |s: f32| (s / h).ceil() as usize + 3;
-        GridShape {
-            origin,
-            h,
-            dims: [n(size.x), n(size.y), n(size.z)],
-        }
-    }
-
-    /// Number of nodes.
-    pub fn len(&self) -> usize {
-        self.dims[0] * self.dims[1] * self.dims[2]
-    }
-
-    /// True when the grid has no node (never for [`GridShape::covering`]).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// World position of node `(i, j, k)`.
-    pub fn node(&self, i: usize, j: usize, k: usize) -> Vec3A {
-        self.origin + Vec3A::new(i as f32, j as f32, k as f32) * self.h
-    }
-}
+/// Rows (along +x) per bundle when the extinction is sampled: one cull per bundle.
+const BUNDLE_ROWS: usize = 8;
 
 /// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
 /// toward each sky cell on a grid of twice the spacing (sky light comes from a broad source: its
@@ -74,10 +40,28 @@ pub struct LightGrid {
 }
 
 impl LightGrid {
+    /// The light grid of a frame: `medium` lit by `settings.sun` at
+    /// `settings.quality.shadow_grid` cells on the longest side. `None` when the medium is
+    /// empty.
+    pub fn for_frame<M: Medium>(settings: &RenderSettings, medium: &M) -> Option<LightGrid> {
+        let sun = Vec3A::from(settings.sun.travel_dir());
+        LightGrid::build(medium, sun, settings.quality.shadow_grid)
+    }
+
+    /// Sample `medium`'s extinction on a grid of about `res` cells on the longest side of its
+    /// bounds and sweep the depths for sunlight travelling along `sun_dir` (unit). `None` when
+    /// the medium has no bounds (empty or unbounded).
+    pub fn build<M: Medium>(medium: &M, sun_dir: Vec3A, res: u32) -> Option<LightGrid> {
+        let (lo, hi) = medium.bounds()?;
+        let shape = GridShape::covering(lo, hi, res);
+        let sigma = sample_nodes(medium, &shape);
+        Some(LightGrid::from_extinction(shape, &sigma, sun_dir))
+    }
+
     /// Sweep the depths from `sigma` (extinction per node, `shape.len()` values) for sunlight
     /// travelling along `sun_dir` (unit) and the sky cells of [`directions`]; the sweeps run in
     /// parallel.
-    pub fn build(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
+    pub fn from_extinction(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
         assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
         let (sky_shape, sky_sigma) = coarsen(&shape, sigma);
         let dirs = directions();
@@ -122,40 +106,60 @@ impl LightGrid {
     }
 }
 
-/// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
-/// accumulated into `out`.
-#[inline]
-pub(super) fn trilinear<const C: usize>(
-    shape: &GridShape,
-    inv_h: f32,
-    v: &[f32],
-    x: Vec3A,
-    out: &mut [f32; C],
-) {
-    let [nx, ny, nz] = shape.dims;
-    let g = ((x - shape.origin) * inv_h).clamp(
-        Vec3A::ZERO,
-        Vec3A::new(nx as f32 - 1.001, ny as f32 - 1.001, nz as f32 - 1.001),
-    );
-    let f = g.floor();
-    let w = g - f;
-    let i00 = f.x as usize + nx * (f.y as usize + ny * f.z as usize);
-    let (sy, sz) = (nx, nx * ny);
-    let corners = [
-        (i00, (1.0 - w.x) * (1.0 - w.y) * (1.0 - w.z)),
-        (i00 + 1, w.x * (1.0 - w.y) * (1.0 - w.z)),
-        (i00 + sy, (1.0 - w.x) * w.y * (1.0 - w.z)),
-        (i00 + sy + 1, w.x * w.y * (1.0 - w.z)),
-        (i00 + sz, (1.0 - w.x) * (1.0 - w.y) * w.z),
-        (i00 + sz + 1, w.x * (1.0 - w.y) * w.z),
-        (i00 + sy + sz, (1.0 - w.x) * w.y * w.z),
-        (i00 + sy + sz + 1, w.x * w.y * w.z),
-    ];
-    for (node, wc) in corners {
-        for (a, &t) in out.iter_mut().zip(&v[node * C..(node + 1) * C]) {
-            *a += wc * t;
-        }
+impl Lights for LightGrid {
+    #[inline]
+    fn depths(&self, x: Vec3A) -> LightDepths {
+        self.lookup(x)
     }
+}
+
+/// `medium`'s extinction on the nodes of `shape` (flat index `i + nx·(j + ny·k)`): each row
+/// along +x is a ray from its first node, evaluated at the nodes inside its intervals (0
+/// elsewhere); slices of constant `k` run in parallel, in bundles of [`BUNDLE_ROWS`] rows.
+fn sample_nodes<M: Medium>(medium: &M, shape: &GridShape) -> Vec<f32> {
+    let [nx, ny, _] = shape.dims;
+    let h = shape.h;
+    let columns = Columns {
+        start: shape.origin.as_dvec3(),
+        u: DVec3::Y,
+        v: DVec3::Z,
+        dir: DVec3::X,
+        h: h as f64,
+        length: (h * (nx - 1) as f32) as f64,
+    };
+    let mut sigma = vec![0.0f32; shape.len()];
+    sigma.par_chunks_mut(nx * ny).enumerate().for_each_init(
+        || medium.scratch(),
+        |scratch, (k, slice)| {
+            for j0 in (0..ny).step_by(BUNDLE_ROWS) {
+                let rows = j0..(j0 + BUNDLE_ROWS).min(ny);
+                let ray = |j: usize, k: usize| super::camera::Ray {
+                    origin: shape.node(0, j, k),
+                    dir: Vec3A::X,
+                };
+                sample_bundle(
+                    medium,
+                    scratch,
+                    &columns,
+                    rows,
+                    k..k + 1,
+                    ray,
+                    |s, j, _, ray| {
+                        let row = &mut slice[j * nx..(j + 1) * nx];
+                        for iv in medium.intervals(s) {
+                            let first = (iv[0] / h).ceil() as usize;
+                            let last = ((iv[1] / h).floor() as usize).min(nx - 1);
+                            for (i, v) in row.iter_mut().enumerate().take(last + 1).skip(first) {
+                                let t = i as f32 * h;
+                                *v = medium.extinction(s, t, ray.at(t));
+                            }
+                        }
+                    },
+                );
+            }
+        },
+    );
+    sigma
 }
 
 /// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`),
@@ -308,19 +312,15 @@ mod tests {
 
     /// A ball of radius 1 and extinction 3 at the origin, sampled on a 64-cell grid.
     fn ball_grid(sun: Vec3A) -> LightGrid {
-        let shape = GridShape::covering(Vec3A::splat(-1.0), Vec3A::splat(1.0), 64);
-        let mut sigma = vec![0.0; shape.len()];
-        let [nx, ny, nz] = shape.dims;
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    if shape.node(i, j, k).length() < 1.0 {
-                        sigma[i + nx * (j + ny * k)] = 3.0;
-                    }
-                }
-            }
-        }
-        LightGrid::build(shape, &sigma, sun)
+        let ball = crate::render::Homogeneous {
+            shape: crate::render::Shape::Ball {
+                center: Vec3A::ZERO,
+                radius: 1.0,
+            },
+            sigma_t: 3.0,
+            step: 0.05,
+        };
+        LightGrid::build(&ball, sun, 64).expect("a bounded medium")
     }
 
     #[test]

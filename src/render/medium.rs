@@ -1,5 +1,11 @@
-//! What the integrator marches through: the [`Medium`] contract, and [`Homogeneous`], an
-//! analytic constant-density ball or slab used to check the integrator against closed forms.
+//! What the integrator marches through: the [`Medium`] contract (extinction along rays, as
+//! pbrt's `Medium`; the phase function is the cloud material's, [`super::phase`]), and
+//! [`Homogeneous`], an analytic constant-density ball or slab used to check the integrator
+//! against closed forms.
+//!
+//! A medium knows its density only: the light reaching a sample comes from a separate
+//! [`super::lights::Lights`] (the light grid, built from any medium by
+//! [`super::light_grid::LightGrid::build`]), so one medium can be lit by another's grid.
 //!
 //! The blob cloud ([`super::blobs::BlobMedium`]) is the production medium. `Medium` is a trait
 //! (not an enum) only so that the integrator is monomorphised per medium with no dispatch in the
@@ -7,31 +13,7 @@
 
 use glam::Vec3A;
 
-use super::camera::{Frustum, Ray};
-use super::sky_light::{SKY_DIRECTIONS, directions};
-
-/// Optical depths from a point toward the lights: the sun, and each sky cell of
-/// [`super::sky_light`] (in the order of [`directions`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LightDepths {
-    /// Toward the sun.
-    pub sun: f32,
-    /// Transmittance toward the sun, `e^{−sun}` where known exactly; a light grid interpolates
-    /// the transmittance itself (see [`super::light_grid`]), which differs from `e^{−sun}` of the
-    /// interpolated depth where the depth changes fast.
-    pub sun_transmittance: f32,
-    /// Toward each sky cell.
-    pub sky: [f32; SKY_DIRECTIONS],
-}
-
-impl LightDepths {
-    /// No medium in the way.
-    pub const ZERO: LightDepths = LightDepths {
-        sun: 0.0,
-        sun_transmittance: 1.0,
-        sky: [0.0; SKY_DIRECTIONS],
-    };
-}
+use super::camera::{Frustum, Ray, ray_ellipsoid};
 
 /// A participating medium as the integrator sees it.
 ///
@@ -68,8 +50,9 @@ pub trait Medium: Sync {
         (sigma, sigma > 0.0)
     }
 
-    /// Optical depths from `x` toward the sun and the sky cells.
-    fn light_depths(&self, x: Vec3A) -> LightDepths;
+    /// A box `(lo, hi)` outside which the extinction is zero; `None` when the medium is empty
+    /// or unbounded.
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)>;
 
     /// Coarse march step through empty parts of the intervals (world units).
     fn step(&self) -> f32;
@@ -106,7 +89,7 @@ impl Shape {
         match *self {
             Shape::Ball { center, radius } => {
                 let inv = 1.0 / radius;
-                super::blobs::ray_ellipsoid((origin - center) * inv, dir * inv)
+                ray_ellipsoid((origin - center) * inv, dir * inv)
             }
             Shape::Slab { normal, near, far } => {
                 let (o, d) = (normal.dot(origin), normal.dot(dir));
@@ -128,15 +111,14 @@ impl Shape {
     }
 }
 
-/// Constant extinction inside a [`Shape`], with exact light depths. For tests and calibration.
+/// Constant extinction inside a [`Shape`]. For tests and calibration (exact light depths through
+/// it: [`super::lights::HomogeneousLights`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Homogeneous {
     /// Where the medium is.
     pub shape: Shape,
     /// Extinction per unit length.
     pub sigma_t: f32,
-    /// Unit direction the sunlight travels (must match the render settings).
-    pub sun_dir: Vec3A,
     /// March step.
     pub step: f32,
 }
@@ -165,17 +147,12 @@ impl Medium for Homogeneous {
         self.sigma_t
     }
 
-    fn light_depths(&self, x: Vec3A) -> LightDepths {
-        let depth = |dir: Vec3A| {
-            self.shape
-                .interval(x, dir)
-                .map_or(0.0, |(t0, t1)| self.sigma_t * (t1 - t0))
-        };
-        let dirs = directions();
-        LightDepths {
-            sun: depth(-self.sun_dir),
-            sun_transmittance: (-depth(-self.sun_dir)).exp(),
-            sky: std::array::from_fn(|k| depth(dirs[k])),
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        match self.shape {
+            Shape::Ball { center, radius } => {
+                Some((center - Vec3A::splat(radius), center + Vec3A::splat(radius)))
+            }
+            Shape::Slab { .. } => None,
         }
     }
 

@@ -5,12 +5,17 @@
 //! frames so that noise anchored to it travels with it; dead or zero-size blobs are skipped).
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
 //!
-//! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA and
-//! builds the per-frame light grid ([`light_grid`]: optical depth toward the sun and toward the
-//! sky cells of [`sky_light`]);
-//! [`integrate`] marches every pixel through the blob supports only (tile frustum culling, then
-//! per-ray ellipsoid intervals), evaluating the noisy density ([`density`], [`noise`]) and the
-//! lighting ([`shading`]).
+//! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA, a
+//! density-only [`Medium`]; [`light_grid::LightGrid::for_frame`] builds the per-frame light grid
+//! from any medium (optical depth toward the sun, [`sun_grid`], and toward the sky cells of
+//! [`sky_light`]; the medium's extinction sampled along lattice rays, [`lattice`], as the
+//! volume export samples it); [`integrate`] marches every pixel through the blob supports only
+//! (tile frustum culling, then per-ray ellipsoid intervals), evaluating the noisy density
+//! ([`density`], [`noise`]) and the lighting ([`shading`]: phase functions in [`phase`], the sky
+//! dome in [`sky`], the optical depths from any [`Lights`]).
+//!
+//! Where is sunlight computed? Its shadowing in [`sun_grid`] (assembled with the sky's in
+//! [`light_grid`]), its scattering toward the eye in [`shading`].
 //!
 //! References:
 //! - L. G. Henyey, J. L. Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93, 70–83.
@@ -26,23 +31,31 @@ pub mod blobs;
 pub mod camera;
 pub mod density;
 pub mod integrate;
+pub mod lattice;
 pub mod light_grid;
+pub mod lights;
 pub mod medium;
 pub mod memory;
 pub mod noise;
 pub mod output;
+pub mod phase;
 pub mod settings;
 pub mod shading;
+pub mod sky;
 pub mod sky_light;
 pub mod sun_grid;
 
-pub use blobs::{BlobMedium, ray_ellipsoid};
+pub use blobs::BlobMedium;
+pub use camera::ray_ellipsoid;
 pub use integrate::{render_medium, render_medium_unshaded};
-pub use medium::{Homogeneous, LightDepths, Medium, Shape};
+pub use light_grid::LightGrid;
+pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
+pub use medium::{Homogeneous, Medium, Shape};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
-pub use shading::SkyDome;
+pub use shading::{InScattered, Shading};
+pub use sky::SkyDome;
 
 use crate::blobby::Blob;
 
@@ -67,5 +80,6 @@ pub struct Frame {
 /// jitter does not change between frames, so identical blobs give identical frames.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
-    render_medium(settings, &medium)
+    let lights = LightGrid::for_frame(settings, &medium);
+    render_medium(settings, &medium, &lights)
 }

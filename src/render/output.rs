@@ -243,7 +243,7 @@ pub fn write_png(path: &Path, frame: &Frame, settings: &RenderSettings) -> std::
 pub fn tonemapped(frame: &Frame, settings: &RenderSettings) -> image::RgbImage {
     let cam = CameraRays::new(&settings.camera, frame.width, frame.height);
     let gain = settings.exposure.exp2();
-    let dome = super::shading::SkyDome::new(&settings.sky, &settings.sun);
+    let dome = super::sky::SkyDome::new(&settings.sky, &settings.sun);
     image::RgbImage::from_fn(frame.width, frame.height, |x, y| {
         let i = (y * frame.width + x) as usize;
         let dir = Vec3::from(cam.pixel_ray(x, y).dir);

@@ -16,7 +16,8 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A};
 
-use super::shading::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, SkyDome, henyey_greenstein};
+use super::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
+use super::sky::SkyDome;
 
 /// Number of sky cells: the 26 directions from a cube's centre to its face centres, edge
 /// midpoints and corners (all of them at least 35° apart).
@@ -80,7 +81,7 @@ pub struct SkyLight {
 
 impl SkyLight {
     /// Cells of `dome` for a cloud with phase asymmetry `g` (the two-lobe
-    /// [`super::shading::cloud_phase`]).
+    /// [`super::phase::cloud_phase`]).
     pub fn new(dome: &SkyDome, g: f32) -> SkyLight {
         let dirs = directions();
         // Bin a uniform sampling of the sphere (uniform in y and azimuth) into the nearest cell.
@@ -241,8 +242,8 @@ fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::phase::cloud_phase;
     use crate::render::settings::{Sky, Sun};
-    use crate::render::shading::cloud_phase;
 
     #[test]
     fn directions_are_distinct_unit_vectors_with_up_and_down_where_named() {

@@ -13,7 +13,7 @@
 use glam::{Mat3A, Vec3A};
 use rayon::prelude::*;
 
-use super::light_grid::{GridShape, trilinear};
+use super::lattice::{GridShape, trilinear};
 
 /// Depth and transmittance toward the sun on a light-aligned grid.
 #[derive(Clone, Debug)]

@@ -1,11 +1,12 @@
 //! A dense density grid as a [`Medium`]: the very grid Mitsuba renders (cell-centred trilinear,
-//! clamped at the box), with optical depths toward the lights marched exactly through it.
+//! clamped at the box), lit by a light grid built from it or by optical depths toward the
+//! lights marched exactly through it ([`ExactLights`]).
 //! Used to separate the light transport from the density's discretisation in the comparison.
 
 use glam::Vec3A;
 use nephele::export::grid::{DensityGrid, Leaf};
 use nephele::render::camera::{Frustum, Ray};
-use nephele::render::{LightDepths, Medium};
+use nephele::render::{LightDepths, Lights, Medium};
 
 /// The grid, dense over its active box.
 pub struct DenseGrid {
@@ -15,13 +16,11 @@ pub struct DenseGrid {
     dims: [usize; 3],
     vals: Vec<f32>,
     max: f32,
-    sun_dir: Vec3A,
-    light: Option<nephele::render::light_grid::LightGrid>,
 }
 
 impl DenseGrid {
-    /// `grid` made dense; `sun_dir` the direction the sunlight travels.
-    pub fn new(grid: &DensityGrid, sun_dir: Vec3A) -> DenseGrid {
+    /// `grid` made dense.
+    pub fn new(grid: &DensityGrid) -> DenseGrid {
         let (lo, hi) = grid.active_index_bounds().expect("a live cloud");
         let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
         let mut vals = vec![0.0; dims[0] * dims[1] * dims[2]];
@@ -39,26 +38,7 @@ impl DenseGrid {
             dims,
             max: grid.max_value(),
             vals,
-            sun_dir,
-            light: None,
         }
-    }
-
-    /// Use a light grid of `res` cells (as the blob medium does) instead of exact marches.
-    pub fn with_light_grid(mut self, res: u32) -> DenseGrid {
-        use nephele::render::light_grid::{GridShape, LightGrid};
-        let shape = GridShape::covering(self.lo, self.hi, res);
-        let [nx, ny, nz] = shape.dims;
-        let mut sigma = vec![0.0; shape.len()];
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    sigma[i + nx * (j + ny * k)] = self.sigma(shape.node(i, j, k));
-                }
-            }
-        }
-        self.light = Some(LightGrid::build(shape, &sigma, self.sun_dir));
-        self
     }
 
     fn at(&self, i: usize, j: usize, k: usize) -> f32 {
@@ -139,17 +119,8 @@ impl Medium for DenseGrid {
         self.sigma(x)
     }
 
-    fn light_depths(&self, x: Vec3A) -> LightDepths {
-        if let Some(l) = &self.light {
-            return l.lookup(x);
-        }
-        let dirs = nephele::render::sky_light::directions();
-        let sun = self.depth(x, -self.sun_dir);
-        LightDepths {
-            sun,
-            sun_transmittance: (-sun).exp(),
-            sky: std::array::from_fn(|k| self.depth(x, dirs[k])),
-        }
+    fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        Some((self.lo, self.hi))
     }
 
     fn step(&self) -> f32 {
@@ -158,5 +129,30 @@ impl Medium for DenseGrid {
 
     fn max_extinction(&self) -> f32 {
         self.max
+    }
+}
+
+/// Optical depths toward the lights marched exactly through a [`DenseGrid`] (slow).
+pub struct ExactLights<'a> {
+    grid: &'a DenseGrid,
+    sun_dir: Vec3A,
+}
+
+impl<'a> ExactLights<'a> {
+    /// Depths through `grid` for sunlight travelling along `sun_dir`.
+    pub fn new(grid: &'a DenseGrid, sun_dir: Vec3A) -> ExactLights<'a> {
+        ExactLights { grid, sun_dir }
+    }
+}
+
+impl Lights for ExactLights<'_> {
+    fn depths(&self, x: Vec3A) -> LightDepths {
+        let dirs = nephele::render::sky_light::directions();
+        let sun = self.grid.depth(x, -self.sun_dir);
+        LightDepths {
+            sun,
+            sun_transmittance: (-sun).exp(),
+            sky: std::array::from_fn(|k| self.grid.depth(x, dirs[k])),
+        }
     }
 }

@@ -1,0 +1,90 @@
+//! Optical depths toward the lights: what the shader needs to know about shadowing at a
+//! sample, and who can answer it.
+//!
+//! In: a world point. Out: [`LightDepths`] toward the sun and each sky cell of
+//! [`super::sky_light`]. The production answer is the per-frame light grid
+//! ([`super::light_grid::LightGrid`], built from any [`super::Medium`]); [`HomogeneousLights`]
+//! answers exactly for the analytic test media, [`Unshadowed`] for nothing in the way. Keeping
+//! this apart from the medium lets a light grid built from one medium (e.g. the cloud at the
+//! frame's time) light the march through another (the cloud at a motion-blur sample time).
+
+use glam::Vec3A;
+
+use super::medium::Homogeneous;
+use super::sky_light::{SKY_DIRECTIONS, directions};
+
+/// Optical depths from a point toward the lights: the sun, and each sky cell of
+/// [`super::sky_light`] (in the order of [`directions`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightDepths {
+    /// Toward the sun.
+    pub sun: f32,
+    /// Transmittance toward the sun, `e^{−sun}` where known exactly; a light grid interpolates
+    /// the transmittance itself (see [`super::light_grid`]), which differs from `e^{−sun}` of the
+    /// interpolated depth where the depth changes fast.
+    pub sun_transmittance: f32,
+    /// Toward each sky cell.
+    pub sky: [f32; SKY_DIRECTIONS],
+}
+
+impl LightDepths {
+    /// No medium in the way.
+    pub const ZERO: LightDepths = LightDepths {
+        sun: 0.0,
+        sun_transmittance: 1.0,
+        sky: [0.0; SKY_DIRECTIONS],
+    };
+}
+
+/// Something that knows the optical depths toward the lights anywhere in a frame.
+pub trait Lights: Sync {
+    /// Optical depths from `x` toward the sun and the sky cells.
+    fn depths(&self, x: Vec3A) -> LightDepths;
+}
+
+/// Nothing casts a shadow (all depths 0).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Unshadowed;
+
+impl Lights for Unshadowed {
+    #[inline]
+    fn depths(&self, _: Vec3A) -> LightDepths {
+        LightDepths::ZERO
+    }
+}
+
+/// `None` (e.g. no light grid for an empty cloud) is [`Unshadowed`].
+impl<L: Lights> Lights for Option<L> {
+    #[inline]
+    fn depths(&self, x: Vec3A) -> LightDepths {
+        self.as_ref().map_or(LightDepths::ZERO, |l| l.depths(x))
+    }
+}
+
+/// Exact depths through a [`Homogeneous`] medium (chords of its shape), for tests and
+/// calibration.
+#[derive(Clone, Copy, Debug)]
+pub struct HomogeneousLights {
+    /// The medium casting the shadows.
+    pub medium: Homogeneous,
+    /// Unit direction the sunlight travels (must match the render settings).
+    pub sun_dir: Vec3A,
+}
+
+impl Lights for HomogeneousLights {
+    fn depths(&self, x: Vec3A) -> LightDepths {
+        let m = &self.medium;
+        let depth = |dir: Vec3A| {
+            m.shape
+                .interval(x, dir)
+                .map_or(0.0, |(t0, t1)| m.sigma_t * (t1 - t0))
+        };
+        let dirs = directions();
+        let sun = depth(-self.sun_dir);
+        LightDepths {
+            sun,
+            sun_transmittance: (-sun).exp(),
+            sky: std::array::from_fn(|k| depth(dirs[k])),
+        }
+    }
+}

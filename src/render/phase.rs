@@ -1,0 +1,85 @@
+//! Phase functions: how much light a cloud droplet scatters into each direction.
+//!
+//! In: the cosine `μ` between the light's travel direction and the scattered direction, and the
+//! asymmetry `g`. Out: the phase function's value per steradian (each integrates to 1 over the
+//! sphere). Used by the shader ([`super::shading`]) for the sun and the octaves, and by the sky
+//! cells ([`super::sky_light`]).
+//!
+//! - Henyey & Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93: the phase function.
+
+use std::f32::consts::PI;
+
+/// Henyey–Greenstein phase function `(1 − g²) / (4π (1 + g² − 2gμ)^{3/2})` for the cosine `μ`
+/// between the light's travel direction and the scattered direction. Integrates to 1 over the
+/// sphere for any `g ∈ (−1, 1)`.
+#[inline]
+pub fn henyey_greenstein(mu: f32, g: f32) -> f32 {
+    let g2 = g * g;
+    let d = (1.0 + g2 - 2.0 * g * mu).max(1e-6);
+    (1.0 - g2) / (4.0 * PI * d * d.sqrt())
+}
+
+/// Weight of the backward lobe in [`cloud_phase`].
+pub const BACK_LOBE_WEIGHT: f32 = 0.2;
+/// Asymmetry of the backward lobe relative to the scene's `g`.
+pub const BACK_LOBE_RATIO: f32 = -0.4;
+
+/// The cloud's two-lobe phase function: `(1 − w)·HG(μ, g) + w·HG(μ, −0.4 g)` with
+/// `w =` [`BACK_LOBE_WEIGHT`]; the back lobe brightens the side facing the sun, as Mie
+/// scattering by droplets does. Integrates to 1.
+#[inline]
+pub fn cloud_phase(mu: f32, g: f32) -> f32 {
+    (1.0 - BACK_LOBE_WEIGHT) * henyey_greenstein(mu, g)
+        + BACK_LOBE_WEIGHT * henyey_greenstein(mu, BACK_LOBE_RATIO * g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// ∫ p dω over the sphere by the midpoint rule in μ (the azimuth integral is 2π).
+    fn integrate(p: impl Fn(f32) -> f32) -> f64 {
+        let n = 200_000;
+        (0..n)
+            .map(|i| {
+                let mu = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
+                p(mu as f32) as f64 * 2.0 / n as f64
+            })
+            .sum::<f64>()
+            * 2.0
+            * std::f64::consts::PI
+    }
+
+    #[test]
+    fn phase_functions_integrate_to_one() {
+        for g in [-0.5, 0.0, 0.3, 0.75, 0.9] {
+            let hg = integrate(|mu| henyey_greenstein(mu, g));
+            assert!((hg - 1.0).abs() < 1e-3, "HG g={g}: {hg}");
+            let c = integrate(|mu| cloud_phase(mu, g));
+            assert!((c - 1.0).abs() < 1e-3, "cloud g={g}: {c}");
+        }
+    }
+
+    #[test]
+    fn hg_matches_closed_form_values() {
+        // g = 0: isotropic 1/4π. Forward peak (1+g)/(4π(1−g)²), backward (1−g)/(4π(1+g)²).
+        let inv4pi = 1.0 / (4.0 * PI);
+        assert!((henyey_greenstein(0.3, 0.0) - inv4pi).abs() < 1e-7);
+        let g = 0.75f32;
+        let fwd = (1.0 + g) / (4.0 * PI * (1.0 - g) * (1.0 - g));
+        let back = (1.0 - g) / (4.0 * PI * (1.0 + g) * (1.0 + g));
+        assert!((henyey_greenstein(1.0, g) / fwd - 1.0).abs() < 1e-5);
+        assert!((henyey_greenstein(-1.0, g) / back - 1.0).abs() < 1e-5);
+        // Mean cosine equals g.
+        let n = 100_000;
+        let mean: f64 = (0..n)
+            .map(|i| {
+                let mu = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
+                mu * henyey_greenstein(mu as f32, g) as f64 * 2.0 / n as f64
+            })
+            .sum::<f64>()
+            * 2.0
+            * std::f64::consts::PI;
+        assert!((mean - g as f64).abs() < 1e-3, "mean cosine {mean}");
+    }
+}
