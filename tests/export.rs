@@ -370,10 +370,8 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     let to_cam = attrs.world_to_camera.expect("worldToCamera");
     let to_ndc = attrs.world_to_normalized_device.expect("worldToNDC");
     // The renderer's camera of that frame (the orbit makes it differ from frame 1's).
-    let (model, _) = scene::load_target(&s, &out).unwrap();
-    let prep = scene::shot::prepare(&s, model).unwrap();
-    let setup = scene::shot::shot_setup(&s, &opts).unwrap();
-    let settings = scene::shot::frame_settings(&s, &prep, &setup, 5, false);
+    let shot = scene::Shot::open(s.clone(), &opts).unwrap();
+    let settings = shot.settings(5).unwrap();
     let rays = nephele::render::camera::CameraRays::new(&settings.camera, 48, 30);
     let (pixels, points) = known_points(&settings.camera);
     for (want, p) in pixels.iter().zip(points) {
@@ -472,16 +470,14 @@ fn usd_stage_camera_projects_like_the_renderer() {
         output: Some(dir.join("out")),
         ..RenderOptions::default()
     };
-    let (model, _) = scene::load_target(&s, &dir.join("out")).unwrap();
-    let prep = scene::shot::prepare(&s, model).unwrap();
-    let setup = scene::shot::shot_setup(&s, &opts).unwrap();
+    let shot = scene::Shot::open(s.clone(), &opts).unwrap();
     let first = RenderOptions {
         frames: Some((1, 1)),
         ..opts.clone()
     };
     scene::render_shot(&s, &first, &mut |_| {}).unwrap();
     for frame in [1u32, 5, 8] {
-        let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
+        let settings = shot.settings(shot.index(frame)).unwrap();
         let (pixels, points) = known_points(&settings.camera);
         let mut cmd = Command::new(&python);
         cmd.arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/usd_project.py"))
@@ -677,13 +673,11 @@ fn bench_duck_vdb_frames() {
             output: Some(cache.clone()),
             ..RenderOptions::default()
         };
-        let (model, _) = scene::load_target(&s, &cache).unwrap();
-        let prep = scene::shot::prepare(&s, model).unwrap();
-        let setup = scene::shot::shot_setup(&s, &opts).unwrap();
-        let voxel = export::voxel_size(None, &prep.bounds);
+        let shot = scene::Shot::open(s, &opts).unwrap();
+        let voxel = export::voxel_size(None, &shot.prepared().unwrap().bounds);
         for frame in frames {
-            let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
-            let blobs = prep.plan.frame(frame as usize - 1);
+            let settings = shot.settings(shot.index(frame)).unwrap();
+            let blobs = shot.blobs(shot.index(frame)).unwrap();
             let t0 = Instant::now();
             let grid = export::frame_grid(&settings, &blobs, voxel).unwrap();
             let t1 = Instant::now();

@@ -98,25 +98,26 @@ pub(crate) fn sphere_blob(c: DVec3, r: f64) -> Blob {
     )
 }
 
-/// One animation scheme with its settings (the scene file's `animation` field).
+/// One animation scheme with its settings (the scene file's `animation` field). `S` names a
+/// morph's source model in the caller's terms (see [`MorphConfig`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub enum Animation {
+pub enum Animation<S = ()> {
     /// Clusters of blobs fly in from outside and gather into the target (paper §5.2.1).
     Aggregation(AggregationConfig),
     /// The target grows from its largest blob outward (paper §5.2.2).
     Diffusion(DiffusionConfig),
     /// One blob model turns into another (metamorphosis).
-    Morph(MorphConfig),
+    Morph(MorphConfig<S>),
 }
 
-impl Default for Animation {
+impl<S> Default for Animation<S> {
     fn default() -> Self {
         Animation::Diffusion(DiffusionConfig::default())
     }
 }
 
-impl Animation {
+impl<S> Animation<S> {
     /// Check every setting; errors name the field as `animation.NAME`.
     pub fn validate(&self) -> Result<(), AnimateError> {
         match self {
@@ -194,8 +195,8 @@ pub enum Plan {
 
 /// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`. A
 /// morph needs [`plan_with_source`].
-pub fn plan(
-    animation: &Animation,
+pub fn plan<S>(
+    animation: &Animation<S>,
     model: &BlobModel,
     timeline: Timeline,
     seed: u64,
@@ -204,8 +205,8 @@ pub fn plan(
 }
 
 /// [`plan`] with the morph's source model (ignored by the other schemes).
-pub fn plan_with_source(
-    animation: &Animation,
+pub fn plan_with_source<S>(
+    animation: &Animation<S>,
     model: &BlobModel,
     source: Option<&BlobModel>,
     timeline: Timeline,

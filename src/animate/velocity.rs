@@ -210,7 +210,13 @@ mod tests {
             fps: 24.0,
             hold_seconds: 0.5,
         };
-        let plan = plan(&Animation::Aggregation(cfg.clone()), &model, timeline, 7).unwrap();
+        let plan = plan(
+            &Animation::<()>::Aggregation(cfg.clone()),
+            &model,
+            timeline,
+            7,
+        )
+        .unwrap();
         let Plan::Aggregation(agg) = &plan else {
             unreachable!()
         };

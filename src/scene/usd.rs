@@ -17,10 +17,9 @@ use std::path::{Component, Path, PathBuf};
 
 use glam::DVec3;
 
+use super::{SceneError, Shot};
 use crate::render::output::CameraFrame;
 use crate::render::{Sky, Sun};
-use crate::scene::Scene;
-use crate::scene::shot::{Prepared, ShotSetup, frame_settings};
 
 /// Vertical aperture of the stage's camera (tenths of a unit, the schema's convention).
 pub const VERTICAL_APERTURE: f64 = 24.0;
@@ -44,21 +43,21 @@ pub struct Stage {
     pub doc: String,
 }
 
-/// The stage of a scene's whole shot (full resolution), for a stage file in `stage_dir`: the
-/// cameras of every frame as rendered, the lights, and the frame VDBs of `setup.dir` (written by
-/// `nephele render --formats vdb`), relative to `stage_dir` where possible.
-pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: &Path) -> Stage {
-    let cameras = (0..setup.total)
-        .map(|k| {
-            let settings = frame_settings(scene, prep, setup, k, false);
-            CameraFrame::new(&settings.camera, setup.width, setup.height)
-        })
+/// The stage of `shot`'s whole shot (every frame, whatever its frame range), for a stage file
+/// in `stage_dir`: the cameras of every frame as rendered, the lights, and the frame VDBs of
+/// the shot's folder (written by `nephele render --formats vdb`), relative to `stage_dir`
+/// where possible.
+pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
+    let scene = shot.scene();
+    let (width, height) = shot.size();
+    let cameras = (0..shot.total())
+        .map(|k| Ok(CameraFrame::new(&shot.settings(k)?.camera, width, height)))
+        .collect::<Result<_, SceneError>>()?;
+    let length = shot.prepared()?.bounds.diagonal().max(1e-12);
+    let vdb_paths = (0..shot.total())
+        .map(|k| relative_to(&frame_vdb(shot, shot.number(k)), stage_dir))
         .collect();
-    let length = prep.bounds.diagonal().max(1e-12);
-    let vdb_paths = (1..=setup.total)
-        .map(|frame| relative_to(&frame_vdb(scene, &setup.dir, frame), stage_dir))
-        .collect();
-    Stage {
+    Ok(Stage {
         fps: scene.file.shot.fps,
         cameras,
         clipping: [1e-3 * length, 1e3 * length],
@@ -74,12 +73,13 @@ pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: 
                 .map(|n| n.to_string_lossy())
                 .unwrap_or_default()
         ),
-    }
+    })
 }
 
-/// The VDB file of frame `frame` (1-based) in `dir`, as `nephele render --formats vdb` names it.
-pub fn frame_vdb(scene: &Scene, dir: &Path, frame: u32) -> PathBuf {
-    dir.join(format!("{}_{frame:04}.vdb", scene.name))
+/// The VDB file of frame number `frame`, as `nephele render --formats vdb` names it.
+pub fn frame_vdb(shot: &Shot, frame: u32) -> PathBuf {
+    shot.dir()
+        .join(format!("{}.vdb", super::files::frame_stem(shot, frame)))
 }
 
 /// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.
