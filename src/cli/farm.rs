@@ -6,7 +6,7 @@ use std::process::Command;
 
 use anyhow::{Context, bail};
 use nephele::farm::{self, FarmJob, K8sPod};
-use nephele::scene::{self, RenderOptions, chunk};
+use nephele::scene::{self, RenderOptions, Shot, chunk};
 
 use super::render::FrameArg;
 
@@ -80,16 +80,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         preview: args.preview,
         ..RenderOptions::default()
     };
-    let setup = scene::shot::shot_setup(&scene, &opts)?;
+    let shot = Shot::open(scene, &opts)?;
+    let scene = shot.scene();
     let chunk_frames = args
         .chunk
-        .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(&setup.frames)));
-    let tasks = chunk::task_count(&setup.frames, chunk_frames)?;
-    nephele::atomic::check_writable(&setup.dir)
-        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
+        .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(&shot.frames())));
+    let tasks = chunk::task_count(&shot.frames(), chunk_frames)?;
+    nephele::atomic::check_writable(shot.dir())
+        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
     let absolute =
         |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
-    let dir = absolute(&setup.dir)?;
+    let dir = absolute(shot.dir())?;
     let nephele = match (&args.nephele, args.engine) {
         (Some(p), _) => p.clone(),
         (None, Engine::Slurm) => {
@@ -105,8 +106,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         nephele,
         scene: absolute(&args.scene)?,
-        output: absolute(&setup.cache_dir)?,
-        frames: setup.frames.clone(),
+        output: absolute(shot.cache_dir())?,
+        frames: shot.frames(),
         tasks,
         preview: args.preview,
         logs: dir.join("logs"),
@@ -161,8 +162,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{} tasks of at most {} frames (frames {}..{}):\n  {}\n  {}",
         tasks,
         chunk_frames,
-        setup.frames.start(),
-        setup.frames.end(),
+        shot.frames().start(),
+        shot.frames().end(),
         prepare.display(),
         array.display()
     );

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use nephele::scene::{self, RenderOptions};
+use nephele::scene::{self, RenderOptions, Shot};
 
 /// Arguments of `nephele render`.
 #[derive(Debug, clap::Args)]
@@ -113,7 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let total = scene.file.shot.frame_count();
     let frames = args.frames.map(|f| f.resolve(total));
-    let mut opts = RenderOptions {
+    let opts = RenderOptions {
         frames,
         output: args.output,
         preview: args.preview,
@@ -121,38 +121,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         dump_blobs: args.dump_blobs,
         stats: args.stats,
     };
-    let mut setup = scene::shot::shot_setup(&scene, &opts)?;
+    let name = scene.name.clone();
+    let mut shot = Shot::open(scene, &opts)?;
     if let Some(task) = args.task {
-        let (index, frames) = task_frames(task, setup.frames.clone())?;
+        let (index, frames) = task_frames(task, shot.frames())?;
         eprintln!(
             "task {index}/{}: frames {}..{} of {}..{}",
             task.count,
             frames.start(),
             frames.end(),
-            setup.frames.start(),
-            setup.frames.end()
+            shot.frames().start(),
+            shot.frames().end()
         );
-        // A chunk of the validated range: only the frames change, no need to set up again.
-        opts.frames = Some((*frames.start(), *frames.end()));
-        setup.frames = frames;
+        shot.set_frames(frames);
     }
-    nephele::atomic::check_writable(&setup.dir)
-        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
-    let count = scene::chunk::frame_count(&setup.frames) as u64;
-    let bar = nephele::progress::bar(&scene.name, count);
-    let report = scene::render_shot(&scene, &opts, &mut |f| {
-        bar.inc(1);
-        if !f.skipped {
-            let line = format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds);
-            // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
-            if bar.is_hidden() {
-                eprintln!("{line}");
-            } else {
-                bar.println(line);
+    nephele::atomic::check_writable(shot.dir())
+        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
+    let count = scene::chunk::frame_count(&shot.frames()) as u64;
+    let bar = nephele::progress::bar(&name, count);
+    let report = shot
+        .run(&mut |f| {
+            bar.inc(1);
+            if !f.skipped {
+                let line = format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds);
+                // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
+                if bar.is_hidden() {
+                    eprintln!("{line}");
+                } else {
+                    bar.println(line);
+                }
             }
-        }
-    })
-    .with_context(|| format!("rendering {}", args.scene.display()))?;
+        })
+        .with_context(|| format!("rendering {}", args.scene.display()))?;
     bar.finish_and_clear();
     if let Some(origin) = &report.target {
         use nephele::scene::target::TargetOrigin;

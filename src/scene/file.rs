@@ -28,7 +28,7 @@ pub struct SceneFile {
     pub transform: TargetTransform,
     /// The animation scheme.
     #[serde(default)]
-    pub animation: Animation,
+    pub animation: Animation<Target>,
     /// Camera.
     #[serde(default)]
     pub camera: CameraSpec,
@@ -43,7 +43,7 @@ pub struct SceneFile {
     pub cloud: CloudMaterial,
     /// Resolution, frame rate and length.
     #[serde(default)]
-    pub shot: Shot,
+    pub shot: ShotSpec,
     /// Frames to render, 1-based and inclusive (`None` = the whole shot).
     #[serde(default)]
     pub frames: Option<(u32, u32)>,
@@ -176,10 +176,10 @@ impl Default for FixedCamera {
     }
 }
 
-/// Resolution, frame rate and length of the shot.
+/// Resolution, frame rate and length of the shot (the scene file's `shot`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct Shot {
+pub struct ShotSpec {
     /// Image width in pixels.
     pub width: u32,
     /// Image height in pixels.
@@ -190,9 +190,9 @@ pub struct Shot {
     pub seconds: f64,
 }
 
-impl Default for Shot {
+impl Default for ShotSpec {
     fn default() -> Self {
-        Shot {
+        ShotSpec {
             width: 640,
             height: 360,
             fps: 24.0,
@@ -201,7 +201,7 @@ impl Default for Shot {
     }
 }
 
-impl Shot {
+impl ShotSpec {
     /// Number of frames.
     pub fn frame_count(&self) -> u32 {
         ((self.seconds * self.fps).round() as u32).max(1)

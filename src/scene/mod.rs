@@ -12,15 +12,21 @@
 pub mod camera;
 pub mod chunk;
 pub mod file;
+pub mod files;
+pub mod run;
 pub mod shot;
 pub mod stats;
 pub mod target;
 pub mod transform;
+pub mod usd;
 
 use std::path::{Path, PathBuf};
 
-pub use file::{AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, Shot, Target};
-pub use shot::{FrameReport, RenderOptions, ShotReport, render_shot};
+pub use file::{
+    AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, ShotSpec, Target,
+};
+pub use run::{FrameReport, ShotReport, render_shot};
+pub use shot::{Prepared, RenderOptions, Shot};
 pub use target::load_target;
 
 /// Everything that can go wrong reading a scene or rendering its shot.
