@@ -14,7 +14,7 @@ mod look_support;
 
 use look_support::{Mask, iou, model_mask, outline_excess};
 use nephele::render::render_frame;
-use nephele::scene::{RenderOptions, load_scene, load_target, shot};
+use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// One frame's measures.
 struct Row {
@@ -29,30 +29,25 @@ struct Row {
     coverage: f64,
 }
 
-/// The measures of frames `frames` (1-based) of builtin scene `name`, at `size` (the scene's
-/// own when `None`); `None` when the scene's target is missing.
-fn measure(
-    name: &str,
-    size: Option<(u32, u32)>,
-    frames: &dyn Fn(u32) -> Vec<u32>,
-) -> Option<Vec<Row>> {
+/// The measures of frames `frames` (1-based) of builtin scene `name` at its own size; `None`
+/// when the scene's target is missing.
+fn measure(name: &str, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<Row>> {
     let scene = load_scene(&builtin_scenes::path(name))
         .map_err(|e| eprintln!("skipping {name}: {e}"))
         .ok()?;
-    let mut setup = shot::shot_setup(&scene, &RenderOptions::default()).ok()?;
-    if let Some((w, h)) = size {
-        (setup.width, setup.height) = (w, h);
-    }
-    let cache = std::env::temp_dir().join(format!("nephele-look-{name}"));
-    let (model, _) = load_target(&scene, &cache)
+    let opts = RenderOptions {
+        output: Some(std::env::temp_dir().join(format!("nephele-look-{name}"))),
+        ..RenderOptions::default()
+    };
+    let shot = Shot::open(scene, &opts).ok()?;
+    shot.prepared()
         .map_err(|e| eprintln!("skipping {name}: {e}"))
         .ok()?;
-    let prep = shot::prepare(&scene, model).unwrap();
     let mut out = Vec::new();
-    for f in frames(setup.total) {
-        let k = f - 1;
-        let s = shot::frame_settings(&scene, &prep, &setup, k, false);
-        let blobs = prep.plan.frame(k as usize);
+    for f in frames(shot.total()) {
+        let k = shot.index(f);
+        let s = shot.settings(k).unwrap();
+        let blobs = shot.blobs(k).unwrap();
         let frame = render_frame(&s, &blobs);
         if let Ok(dir) = std::env::var("NEPHELE_LOOK_DIR") {
             let png = std::path::Path::new(&dir).join(format!("{name}_{f:04}.png"));
@@ -77,7 +72,7 @@ fn measure(
 #[test]
 fn cumulus_outline_and_target_silhouette() {
     for name in builtin_scenes::NAMES {
-        let Some(rows) = measure(name, None, &|n| vec![n]) else {
+        let Some(rows) = measure(name, &|n| vec![n]) else {
             continue;
         };
         let r = &rows[0];
@@ -119,7 +114,7 @@ fn look_table() {
             (_, "duck-diffusion") => vec![12, 36, n / 2, n],
             _ => vec![n / 5, n / 2, n],
         };
-        let Some(rows) = measure(name, None, &pick) else {
+        let Some(rows) = measure(name, &pick) else {
             continue;
         };
         for r in rows {
