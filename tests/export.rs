@@ -63,6 +63,7 @@ fn settings() -> RenderSettings {
         seed: 9,
         time: 0.0,
         quality: Quality::final_frame(),
+        base: None,
     }
 }
 

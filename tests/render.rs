@@ -84,6 +84,7 @@ fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
         seed: 7,
         time: 0.0,
         quality,
+        base: None,
     }
 }
 

@@ -229,6 +229,16 @@ fn out_of_range_values_name_the_field() {
             "cloud.noise.frequency",
         ),
         (
+            "base-high",
+            "cloud: (base: Some((height: 1.5, softness: 0.1)))",
+            "cloud.base.height",
+        ),
+        (
+            "base-soft",
+            "cloud: (base: Some((height: 0.2, softness: -0.1)))",
+            "cloud.base.softness",
+        ),
+        (
             "turbidity",
             "sky: HosekWilkie(turbidity: 0.5, ground_albedo: 0.3)",
             "sky.turbidity",

@@ -13,7 +13,7 @@ use super::camera::{Frustum, Ray, ray_ellipsoid};
 use super::density::{DensityParams, Hit, density};
 use super::medium::Medium;
 use super::noise::Billows;
-use super::settings::RenderSettings;
+use super::settings::{BasePlane, RenderSettings};
 use crate::blobby::{Blob, THRESHOLD};
 use crate::rng::{Stream, item_rng};
 
@@ -65,6 +65,8 @@ pub struct BlobMedium {
     hi: Vec<Vec3A>,
     params: DensityParams,
     step: f32,
+    /// The cumulus base, if any.
+    base: Option<BasePlane>,
 }
 
 impl BlobMedium {
@@ -99,6 +101,7 @@ impl BlobMedium {
                 ),
                 inv_threshold: (1.0 / THRESHOLD) as f32,
             },
+            base: settings.base,
             step: 0.0,
         };
         let mut radii = Vec::new();
@@ -226,8 +229,8 @@ impl BlobMedium {
         }
     }
 
-    /// `σ_t` at parameter `t` of the ray whose `hits` were gathered.
-    #[inline]
+    /// `σ_t` at parameter `t` of the ray whose `hits` were gathered (no base).
+    #[cfg(test)]
     fn density(&self, hits: &[Hit], t: f32) -> f32 {
         density(&self.params, hits, t).0
     }
@@ -273,13 +276,17 @@ impl Medium for BlobMedium {
     }
 
     #[inline]
-    fn extinction(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> f32 {
-        self.density(&s.hits, t)
+    fn extinction(&self, s: &BlobScratch, t: f32, x: Vec3A) -> f32 {
+        self.sample(s, t, x).0
     }
 
     #[inline]
-    fn sample(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> (f32, bool) {
-        density(&self.params, &s.hits, t)
+    fn sample(&self, s: &BlobScratch, t: f32, x: Vec3A) -> (f32, bool) {
+        let (sigma, inside) = density(&self.params, &s.hits, t);
+        match &self.base {
+            Some(b) if sigma > 0.0 => (sigma * b.factor(x.y), inside),
+            _ => (sigma, inside),
+        }
     }
 
     fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
@@ -334,6 +341,7 @@ mod tests {
             seed: 1,
             time: 0.0,
             quality: Quality::final_frame(),
+            base: None,
         };
         let m = BlobMedium::new(&settings, &blobs);
         let ray = Ray {

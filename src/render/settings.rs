@@ -130,6 +130,43 @@ impl Default for Noise {
     }
 }
 
+/// A cumulus's flat base: below it the cloud thins out over `softness`, so its underside is
+/// flat and, shadowed by the cloud above, darker (cumulus above its condensation level). Both
+/// values are fractions of the target's height, measured from its bottom (world +Y is up).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CumulusBase {
+    /// Height of the base above the target's bottom, fraction of the target's height.
+    pub height: f32,
+    /// Thickness of the fade below the base, fraction of the target's height (0 = a hard cut).
+    pub softness: f32,
+}
+
+/// A [`CumulusBase`] in world units: the density is `σ·ramp((y − (y_base − softness)) /
+/// softness)` below `y_base`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BasePlane {
+    /// World height of the base.
+    pub y: f32,
+    /// World thickness of the fade below it.
+    pub softness: f32,
+}
+
+impl BasePlane {
+    /// Density factor at world height `y`: 1 at and above the base, fading linearly to 0 at
+    /// `softness` below it.
+    #[inline]
+    pub fn factor(&self, y: f32) -> f32 {
+        if y >= self.y {
+            1.0
+        } else if self.softness > 0.0 {
+            ((y - (self.y - self.softness)) / self.softness).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+}
+
 /// The cloud's participating medium.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -149,8 +186,10 @@ pub struct CloudMaterial {
     /// Add the multiple-scattering approximation to single scattering (false = single
     /// scattering only, the physically exact core).
     pub multiple_scattering: bool,
-    /// Edge erosion noise.
+    /// The billows.
     pub noise: Noise,
+    /// A flat cumulus base (`None`, the default: shapes keep their underside).
+    pub base: Option<CumulusBase>,
 }
 
 impl Default for CloudMaterial {
@@ -162,6 +201,7 @@ impl Default for CloudMaterial {
             phase_g: 0.75,
             multiple_scattering: true,
             noise: Noise::default(),
+            base: None,
         }
     }
 }
@@ -263,6 +303,8 @@ pub struct RenderSettings {
     pub time: f32,
     /// March quality.
     pub quality: Quality,
+    /// `cloud.base` resolved against the target's box (`None`: no base).
+    pub base: Option<BasePlane>,
 }
 
 impl RenderSettings {

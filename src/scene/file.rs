@@ -259,7 +259,7 @@ pub struct OutputSpec {
     /// Formats written per frame.
     pub formats: Vec<Format>,
     /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
-    /// diagonal / 256).
+    /// diagonal / 512).
     pub voxel: Option<f64>,
 }
 
@@ -506,6 +506,26 @@ fn validate_cloud(
             "cloud.phase_g",
             format!("must be in (−1, 1), got {}", c.phase_g),
         ));
+    }
+    if let Some(b) = c.base {
+        if !(b.height.is_finite() && (0.0..=1.0).contains(&b.height)) {
+            return Err(bad(
+                "cloud.base.height",
+                format!(
+                    "must be in 0..=1 (a fraction of the target's height), got {}",
+                    b.height
+                ),
+            ));
+        }
+        if !(b.softness.is_finite() && (0.0..=1.0).contains(&b.softness)) {
+            return Err(bad(
+                "cloud.base.softness",
+                format!(
+                    "must be in 0..=1 (a fraction of the target's height), got {}",
+                    b.softness
+                ),
+            ));
+        }
     }
     if c.noise.octaves > 8 {
         return Err(bad(

@@ -31,7 +31,7 @@ pub fn frame_stem(shot: &Shot, frame: u32) -> String {
 }
 
 /// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
-/// 256), checked against the target's box before any frame is rendered; 0 when the scene
+/// 512), checked against the target's box before any frame is rendered; 0 when the scene
 /// writes no grid.
 pub fn grid_voxel(shot: &Shot) -> Result<f64, SceneError> {
     let scene = shot.scene();

@@ -16,6 +16,7 @@ use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
+use crate::render::settings::BasePlane;
 use crate::render::{self, Frame, Quality, RenderSettings};
 
 /// How to render a shot (the command line's choices).
@@ -203,6 +204,13 @@ impl Shot {
             } else {
                 Quality::preset(f.quality)
             },
+            base: f.cloud.base.map(|b| {
+                let (bottom, height) = (prep.bounds.min.y, prep.bounds.max.y - prep.bounds.min.y);
+                BasePlane {
+                    y: (bottom + b.height as f64 * height) as f32,
+                    softness: (b.softness as f64 * height) as f32,
+                }
+            }),
         })
     }
 
