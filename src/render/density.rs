@@ -96,7 +96,11 @@ impl DensityParams {
         d: f32,
         feature: f32,
         reach: f32,
-        displacement: impl FnOnce(&[f32; super::noise::MAX_OCTAVES], usize) -> f32,
+        displacement: impl FnOnce(
+            &[f32; super::noise::MAX_OCTAVES],
+            usize,
+            &dyn Fn(f32, f32) -> Option<f32>,
+        ) -> Result<f32, f32>,
     ) -> (f32, bool) {
         let (depths, n) = self.billows.depths(feature);
         let total: f32 = depths[..n].iter().sum();
@@ -106,19 +110,36 @@ impl DensityParams {
         if d - CREASE * total >= self.edge {
             return (self.sigma, true);
         }
-        let v = if n > 0 {
-            let push = displacement(&depths, n);
-            d + if push > 0.0 {
+        let (lo_total, hi_total) = (-CREASE * total, (1.0 - CREASE) * total);
+        let cut = MAX_CUT * feature;
+        // The surface's lift for a raw displacement: clamped to its bounds, then softly
+        // limited (monotonic, so bounds of `push` give bounds of the lift).
+        let lift = |push: f32| {
+            let push = push.clamp(lo_total, hi_total);
+            if push > 0.0 {
                 push * reach / (push + reach).max(1e-30)
             } else {
                 // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
-                let cut = MAX_CUT * feature;
                 push * cut / (cut - push).max(1e-30)
             }
-        } else {
-            d
         };
-        (self.sigma * ramp(v, self.edge), true)
+        if n == 0 {
+            return (self.sigma * ramp(d, self.edge), true);
+        }
+        // Once the octaves left cannot move the ramp off a clamp, the answer is exact.
+        let settled = |lo: f32, hi: f32| {
+            if d + lift(hi) <= 0.0 {
+                Some(0.0)
+            } else if d + lift(lo) >= self.edge {
+                Some(self.sigma)
+            } else {
+                None
+            }
+        };
+        match displacement(&depths, n, &settled) {
+            Ok(push) => (self.sigma * ramp(d + lift(push), self.edge), true),
+            Err(sigma) => (sigma, true),
+        }
     }
 }
 
@@ -196,21 +217,31 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     // `1 − |q|²`, so this stays a fair distance deep inside a strong blob, where `(g − 1)/|∇g|`
     // saturates near a fifth of its radius and the creases would hollow it out.
     let d = 2.0 * (g - g.sqrt()) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
-    p.extinction(d, fsum / wsum, reach, |depths, octaves| {
-        let (mut sum, mut w2) = (0.0, 0.0);
+    p.extinction(d, fsum / wsum, reach, |depths, octaves, settled| {
+        let mut points = [Vec3A::ZERO; MAX_ACTIVE];
+        let mut weights = [0.0f32; MAX_ACTIVE];
+        let (mut m, mut w2) = (0, 0.0);
         for &(f, k) in &act[..n] {
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
-                sum += w * p.billows.displacement(h.no + h.nd * t, depths, octaves);
+                points[m] = h.no + h.nd * t;
+                weights[m] = w;
                 w2 += w * w;
+                m += 1;
             }
         }
         // Variance-preserving blend (the blobs' billows are independent with mean ≈ 0): a plain
         // average would flatten the billows wherever blobs overlap, i.e. on most of a fitted
-        // model's surface. Clamped to the bounds the caller skips by.
-        let total: f32 = depths[..octaves].iter().sum();
-        (sum / w2.sqrt()).clamp(-CREASE * total, (1.0 - CREASE) * total)
+        // model's surface.
+        p.billows.blend(
+            &mut points[..m],
+            &weights[..m],
+            1.0 / w2.sqrt(),
+            depths,
+            octaves,
+            settled,
+        )
     })
 }
 
@@ -234,7 +265,10 @@ mod tests {
             .abs()
                 < 1e-5
         );
-        let never = |_: &[f32; 8], _: usize| -> f32 { unreachable!() };
+        let never = |_: &[f32; 8],
+                     _: usize,
+                     _: &dyn Fn(f32, f32) -> Option<f32>|
+         -> Result<f32, f32> { unreachable!() };
         // Beyond the highest billow top: nothing, and the march may skip.
         assert_eq!(
             p.extinction(-(1.0 - CREASE) * total - 1e-3, f, 1.0, never),
@@ -246,14 +280,20 @@ mod tests {
             (10.0, true)
         );
         // Between: the surface is pushed out by a billow top and cut in by a crease.
-        assert_eq!(p.extinction(-0.02, f, 1e9, |_, _| 0.03), (10.0, true));
-        assert_eq!(p.extinction(0.02, f, 1.0, |_, _| -0.03), (0.0, true));
-        let (s, inside) = p.extinction(-0.02, f, 1e9, |_, _| 0.025);
+        assert_eq!(
+            p.extinction(-0.02, f, 1e9, |_, _, _| Ok(0.03)),
+            (10.0, true)
+        );
+        assert_eq!(p.extinction(0.02, f, 1.0, |_, _, _| Ok(-0.03)), (0.0, true));
+        let (s, inside) = p.extinction(-0.02, f, 1e9, |_, _, _| Ok(0.025));
         assert!(inside && (s - 5.0).abs() < 1e-3, "{s}");
         // Near the end of the supports a billow top is rounded off: a push of 0.03 where the
         // supports reach 0.03 further lifts the surface by 0.015 only.
-        assert_eq!(p.extinction(-0.02, f, 0.03, |_, _| 0.03), (0.0, true));
-        let (s, _) = p.extinction(-0.01, f, 0.03, |_, _| 0.03);
+        assert_eq!(
+            p.extinction(-0.02, f, 0.03, |_, _, _| Ok(0.03)),
+            (0.0, true)
+        );
+        let (s, _) = p.extinction(-0.01, f, 0.03, |_, _, _| Ok(0.03));
         assert!((s - 5.0).abs() < 1e-3, "{s}");
         // And no density can lie beyond the reach.
         assert_eq!(p.extinction(-0.031, f, 0.03, never), (0.0, false));

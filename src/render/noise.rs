@@ -197,6 +197,44 @@ impl Billows {
         d[..n].iter().sum()
     }
 
+    /// The blend `Σ_j w_j D(p_j) / √(Σ_j w_j²)` of several blobs' displacements (`norm` =
+    /// `1/√(Σ w²)`), octave by octave from the coarsest: after each octave `settled(lo, hi)`
+    /// gets the range the final blend can still take and may end the evaluation with its own
+    /// answer (`Err`), so the fine octaves run only where they can still matter. `points` are
+    /// the blobs' noise points (advanced in place).
+    #[inline]
+    pub fn blend<R>(
+        &self,
+        points: &mut [Vec3A],
+        weights: &[f32],
+        norm: f32,
+        depths: &[f32; MAX_OCTAVES],
+        n: usize,
+        mut settled: impl FnMut(f32, f32) -> Option<R>,
+    ) -> Result<f32, R> {
+        let spread = weights.iter().sum::<f32>() * norm;
+        let mut rest: f32 = depths[..n].iter().sum();
+        let mut sum = 0.0;
+        for o in 0..n.min(self.n) {
+            if depths[o] > 0.0 {
+                let mut acc = 0.0;
+                for (q, &w) in points.iter().zip(weights) {
+                    acc += w * (billow(*q + self.drift[o]) - CREASE);
+                }
+                sum += depths[o] * acc * norm;
+                rest -= depths[o];
+                let r = rest.max(0.0) * spread;
+                if let Some(answer) = settled(sum - CREASE * r, sum + (1.0 - CREASE) * r) {
+                    return Err(answer);
+                }
+            }
+            for q in points.iter_mut() {
+                *q = *q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
+            }
+        }
+        Ok(sum)
+    }
+
     /// Displacement (world units, positive outward) at noise point `p` for octave depths
     /// `depths` (from [`Billows::depths`]; only the first `n` are evaluated).
     #[inline]
