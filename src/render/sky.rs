@@ -11,8 +11,14 @@ use glam::Vec3;
 
 use super::settings::{Sky, Sun};
 
-/// Fraction of the horizon colour seen below the horizon (a dim ground).
+/// Fraction of the horizon colour seen below the horizon (a dim ground; gradient sky).
 const GROUND: f32 = 0.35;
+
+/// Height of the haze band below the horizon (Hosek–Wilkie ground): the ground's own shade is
+/// `1 − e^(−|y|/HAZE)` of what is seen in direction `(x, y, z)`, the horizon's colour the rest,
+/// so the ground fades into haze toward the horizon (aerial perspective, a thin atmosphere
+/// layer seen at a grazing angle).
+const HAZE: f32 = 0.08;
 
 /// Hosek–Wilkie radiance units per unit of sun intensity: with it a clear sky (turbidity 3,
 /// sun 45° high) has a zenith luminance of 1/60 of the sun's intensity, as the default
@@ -45,8 +51,9 @@ pub enum SkyDome {
         to_sun: Vec3,
         /// Radiance scale (the sun's intensity × [`HW_SCALE`]).
         scale: f32,
-        /// Ground albedo.
-        ground: f32,
+        /// Radiance of the ground: a Lambertian plane of the ground albedo lit by the sun and
+        /// the sky, `ρ/π·(E_sun + E_sky)`.
+        ground: Vec3,
     },
 }
 
@@ -69,20 +76,31 @@ impl SkyDome {
                 };
                 let state = hw_skymodel::rgb::SkyState::new(&params)
                     .expect("parameters clamped to the model's range");
-                SkyDome::HosekWilkie {
+                let mut dome = SkyDome::HosekWilkie {
                     state: Box::new(state),
                     to_sun: Vec3::new(to_sun.x, to_sun.y.max(0.0), to_sun.z).normalize(),
                     scale: sun.intensity.max(0.0) * HW_SCALE,
-                    ground: ground_albedo.clamp(0.0, 1.0),
+                    ground: Vec3::ZERO,
+                };
+                // The ground: irradiance from the sun (its intensity is the irradiance normal
+                // to it, tinted by the air mass) and from the sky above (∫ L cos θ dω).
+                let e_sun = SkyDome::sun_tint(sky, sun)
+                    * sun.color
+                    * (sun.intensity.max(0.0) * to_sun.y.max(0.0));
+                let e_sky = dome.irradiance_from_above();
+                let shade = (e_sun + e_sky) * (ground_albedo.clamp(0.0, 1.0) / PI);
+                if let SkyDome::HosekWilkie { ground, .. } = &mut dome {
+                    *ground = shade;
                 }
+                dome
             }
         }
     }
 
     /// Sky radiance seen in direction `dir` (unit; linear RGB). Gradient: horizon → zenith
     /// above the horizon (square-root ramp in `dir.y`), horizon → dim ground below.
-    /// Hosek–Wilkie: the model above the horizon; below, the horizon's radiance times the
-    /// ground albedo and the ground factor (a dim ground, as for the gradient).
+    /// Hosek–Wilkie: the model above the horizon; below, the ground lit by the sun and the sky
+    /// (albedo `ground_albedo`), fading into the horizon's haze within [`HAZE`] of it.
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         match self {
             SkyDome::Gradient { zenith, horizon } => {
@@ -112,7 +130,7 @@ impl SkyDome {
                 if dir.y >= 0.0 {
                     c
                 } else {
-                    c * (*ground * GROUND)
+                    c.lerp(*ground, 1.0 - (dir.y / HAZE).exp())
                 }
             }
         }
@@ -134,6 +152,22 @@ impl SkyDome {
             SkyDome::Gradient { horizon, .. } => horizon.lerp(*horizon * GROUND, 2.0 / 3.0),
             SkyDome::HosekWilkie { .. } => self.hemisphere_mean(-1.0),
         }
+    }
+
+    /// Irradiance on a horizontal plane from the sky above, `∫ L cos θ dω` (midpoint rule on
+    /// the grid of [`SkyDome::hemisphere_mean`]: uniform solid angle, `cos θ = y`).
+    fn irradiance_from_above(&self) -> Vec3 {
+        let (ny, nphi) = (16, 32);
+        let mut sum = Vec3::ZERO;
+        for i in 0..ny {
+            let y = (i as f32 + 0.5) / ny as f32;
+            let r = (1.0 - y * y).sqrt();
+            for j in 0..nphi {
+                let phi = 2.0 * PI * (j as f32 + 0.5) / nphi as f32;
+                sum += self.radiance(Vec3::new(r * phi.cos(), y, r * phi.sin())) * y;
+            }
+        }
+        sum * (2.0 * PI / (ny * nphi) as f32)
     }
 
     /// Mean radiance over the hemisphere `sign·y > 0` (uniform in `y` and azimuth: uniform
