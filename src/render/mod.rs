@@ -24,8 +24,12 @@
 //! - S. Hillaire (2015/2016), "Physically based sky, atmosphere and cloud rendering in
 //!   Frostbite" (energy-conserving step integration, the octave scheme in real time).
 //! - K. Perlin (2002), "Improving noise", SIGGRAPH (gradient noise).
-//! - A. Schneider (2015), "The real-time volumetric cloudscapes of Horizon Zero Dawn" (noise
-//!   that erodes the cloud's edge more than its core).
+//! - M. Wrenninge (2012), *Production Volume Rendering* (pyroclastic displacement by `|noise|`:
+//!   the billows of [`noise::Billows`]).
+//! - A. Bouthors, F. Neyret (2004), "Modeling clouds shape", Eurographics short papers (cumulus as
+//!   puffs on puffs, each level smaller: octaves that follow the local feature size).
+//! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"
+//!   (billows at several scales on a base shape; a flat, rounded-off cloud base).
 
 pub mod blobs;
 pub mod camera;
