@@ -99,7 +99,7 @@ pub const MAX_OCTAVES: usize = 8;
 
 /// The per-frame constants of [`erosion`]: each octave's evolution drift and weight, and their
 /// total weight, computed once instead of at every sample.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Octaves {
     n: usize,
     drift: [Vec3A; MAX_OCTAVES],

@@ -248,6 +248,8 @@ pub fn render_shot(
         let basis = opts.stats.then(|| StatsBasis::new(&prep));
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
+        // Frames in order: a hold reuses the last frame, a still cloud its light grid.
+        let mut renderer = render::ShotRenderer::new();
         for &(frame, finished) in &frames {
             if !render_it(finished) {
                 report.skipped += 1;
@@ -258,12 +260,12 @@ pub fn render_shot(
             let k = frame - 1;
             let blobs = prep.plan.frame(k as usize);
             let settings = frame_settings(scene, &prep, &setup, k, opts.preview);
-            let image = render::render_frame(&settings, &blobs);
+            let image = renderer.render(&settings, &blobs);
             let rendered = Instant::now();
             let write = !finished;
             if write {
                 let out = FrameOutput {
-                    image: &image,
+                    image,
                     settings: &settings,
                     blobs: &blobs,
                     voxel,
@@ -272,7 +274,7 @@ pub fn render_shot(
             }
             let written = Instant::now();
             if let Some(basis) = &basis {
-                stats.push(basis.frame(frame, &blobs, Some(&image)));
+                stats.push(basis.frame(frame, &blobs, Some(image)));
             }
             render_s += (rendered - start).as_secs_f64();
             write_s += (written - rendered).as_secs_f64();
