@@ -204,7 +204,12 @@ impl MorphPlan {
 
     /// The blobs of frame `k` (target first, then merged source blobs).
     pub fn frame(&self, k: usize) -> Vec<Blob> {
-        let done = self.timeline.progress(k) >= 1.0;
+        self.at(self.timeline.time(k))
+    }
+
+    /// The blobs at `t` seconds (any time; see [`super::Plan::at`]).
+    pub fn at(&self, t: f64) -> Vec<Blob> {
+        let done = self.timeline.progress_at(t) >= 1.0;
         if done {
             let mut out = self.target.clone();
             out.extend(
@@ -215,7 +220,7 @@ impl MorphPlan {
             return out;
         }
         let motion = (self.timeline.motion_seconds() - self.lead).max(1e-9);
-        let u = ((self.timeline.time(k) - self.lead) / motion).clamp(0.0, 1.0);
+        let u = ((t - self.lead) / motion).clamp(0.0, 1.0);
         (0..self.to.len())
             .map(|i| {
                 let e = smoothstep((u - self.start[i]) / self.span);

@@ -100,8 +100,16 @@ pub(crate) fn write_frame(shot: &Shot, frame: u32, out: &FrameOutput) -> Result<
                 let g = grid.as_ref().expect("sampled above");
                 let uuid_seed =
                     crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
-                crate::export::write_vdb(path, g, crate::export::GRID_NAME, uuid_seed)
-                    .map_err(io(path))?
+                // The velocity of the density on its voxels, at the frame's time.
+                let plan = &shot.prepared()?.plan;
+                let time = plan.timeline().time(shot.index(frame) as usize);
+                let field = crate::animate::VelocityField::of_plan(plan, time);
+                let vel = crate::export::sample_velocity(g, &field);
+                let grids = [
+                    crate::export::VdbGrid::fog(crate::export::GRID_NAME, g),
+                    crate::export::velocity_vdb_grid(&vel, scene.file.shot.fps),
+                ];
+                crate::export::write_vdb_grids(path, &grids, uuid_seed).map_err(io(path))?
             }
             Format::Vol => {
                 let g = grid.as_ref().expect("sampled above");

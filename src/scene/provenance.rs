@@ -4,8 +4,9 @@
 //! that frame — its blobs (which follow from the target model, the target transform, the
 //! animation and the seed) and its render settings (image size, camera at that frame, sun,
 //! sky, cloud look, exposure, quality, seed, time) — the output kind (final or preview, the
-//! region of a look test, render passes, the EXR's colour space, the grids' voxel size) and
-//! the renderer's version. It is written into the EXR header (`nephele/hash`, 16 hex digits)
+//! region of a look test, render passes, the EXR's colour space, the grids' voxel size; with
+//! VDBs, the blobs' motions about the frame, which make the velocity grid) and the renderer's
+//! version. It is written into the EXR header (`nephele/hash`, 16 hex digits)
 //! and, for every format, into a small manifest beside the frame, `<name>_<frame>.manifest.json`
 //! (frame, hash, version, output kind, file names), written last: a frame whose manifest and
 //! files are there and whose hash matches is finished and up to date.
@@ -66,9 +67,15 @@ pub fn output_kind(shot: &Shot) -> String {
     kind
 }
 
-/// The hash of a frame rendered with `settings` from `blobs` by `shot` (see the module doc);
-/// `voxel` is the density grids' voxel size (0 without grids).
-pub fn frame_hash(shot: &Shot, settings: &RenderSettings, blobs: &[Blob], voxel: f64) -> u64 {
+/// The hash of the shot's 0-based frame `k`, rendered with `settings` from `blobs` by `shot`
+/// (see the module doc); `voxel` is the density grids' voxel size (0 without grids).
+pub fn frame_hash(
+    shot: &Shot,
+    k: u32,
+    settings: &RenderSettings,
+    blobs: &[Blob],
+    voxel: f64,
+) -> u64 {
     let head = format!(
         "nephele frame; version {}; output {}; voxel {voxel:?}",
         env!("CARGO_PKG_VERSION"),
@@ -76,7 +83,34 @@ pub fn frame_hash(shot: &Shot, settings: &RenderSettings, blobs: &[Blob], voxel:
     );
     let settings = format!("{settings:?}");
     let blobs = format!("{blobs:?}");
-    super::target::fnv1a(&[head.as_bytes(), settings.as_bytes(), blobs.as_bytes()])
+    // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
+    // (in units per second, so the frame rate counts too).
+    let motion = match shot.prepared() {
+        Ok(prep)
+            if shot
+                .scene()
+                .file
+                .output
+                .formats
+                .contains(&super::Format::Vdb) =>
+        {
+            let plan = &prep.plan;
+            let t = plan.timeline().time(k as usize);
+            let field = crate::animate::VelocityField::of_plan(plan, t);
+            format!(
+                "fps {:?}; {:?}",
+                shot.scene().file.shot.fps,
+                field.motions()
+            )
+        }
+        _ => String::new(),
+    };
+    super::target::fnv1a(&[
+        head.as_bytes(),
+        settings.as_bytes(),
+        blobs.as_bytes(),
+        motion.as_bytes(),
+    ])
 }
 
 /// The manifest of frame number `frame`: `<name>_<frame>.manifest.json` beside its files.

@@ -87,7 +87,7 @@ impl Shot {
             let k = self.index(frame);
             let blobs = self.blobs(k)?;
             let settings = self.settings(k)?;
-            let hash = provenance::frame_hash(self, &settings, &blobs, voxel);
+            let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
             let status = if opts.force {
                 FrameStatus::New
             } else {
@@ -159,7 +159,8 @@ impl Shot {
             .iter()
             .map(|&frame| {
                 let k = self.index(frame);
-                let hash = provenance::frame_hash(self, &self.settings(k)?, &self.blobs(k)?, voxel);
+                let hash =
+                    provenance::frame_hash(self, k, &self.settings(k)?, &self.blobs(k)?, voxel);
                 Ok((frame, provenance::status(self, frame, hash)))
             })
             .collect()

@@ -1,6 +1,7 @@
 //! The shot as a USD ASCII stage (`.usda`): the camera animated per frame, the sun as a
 //! `DistantLight`, the sky as a `DomeLight` colour, and the cloud as a `Volume` whose
-//! `OpenVDBAsset` field `density` points at the frame VDBs (time-sampled `filePath`).
+//! `OpenVDBAsset` fields `density` and `vel` (the velocity grid, so Karma and other Hydra
+//! renderers motion-blur it without set-up) point at the frame VDBs (time-sampled `filePath`).
 //!
 //! Conventions: the time code of a frame is its frame number (from `shot.start_frame`, 1 by
 //! default), `timeCodesPerSecond` = `framesPerSecond` = the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
@@ -244,22 +245,31 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
     let _ = writeln!(s, "    }}\n");
 }
 
+/// The cloud: a `Volume` with two fields over the same frame VDBs — `density` (the fog volume)
+/// and `vel` (its velocity grid, world units per second, for motion blur).
 fn volume(s: &mut String, paths: &[String], first: usize) {
     let _ = writeln!(s, "    def Volume \"cloud\"\n    {{");
-    let _ = writeln!(s, "        rel field:density = </shot/cloud/density>\n");
-    let _ = writeln!(s, "        def OpenVDBAsset \"density\"\n        {{");
-    let _ = writeln!(s, "            token fieldName = \"density\"");
-    let _ = writeln!(s, "            asset filePath.timeSamples = {{");
-    for (k, p) in paths.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "                {}: @{}@,",
-            first + k,
-            p.replace('@', "%40")
-        );
+    let _ = writeln!(s, "        rel field:density = </shot/cloud/density>");
+    let _ = writeln!(s, "        rel field:vel = </shot/cloud/vel>\n");
+    for (name, data_type) in [("density", "float"), ("vel", "float3")] {
+        let _ = writeln!(s, "        def OpenVDBAsset \"{name}\"\n        {{");
+        let _ = writeln!(s, "            token fieldName = \"{name}\"");
+        let _ = writeln!(s, "            token fieldDataType = \"{data_type}\"");
+        if data_type == "float3" {
+            let _ = writeln!(s, "            token vectorDataRoleHint = \"Vector\"");
+        }
+        let _ = writeln!(s, "            asset filePath.timeSamples = {{");
+        for (k, p) in paths.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "                {}: @{}@,",
+                first + k,
+                p.replace('@', "%40")
+            );
+        }
+        let _ = writeln!(s, "            }}");
+        let _ = writeln!(s, "        }}");
     }
-    let _ = writeln!(s, "            }}");
-    let _ = writeln!(s, "        }}");
     let _ = writeln!(s, "    }}");
 }
 
