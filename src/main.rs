@@ -1,5 +1,5 @@
 //! `nephele` command-line program: parses arguments, runs the command, prints the error chain
-//! and sets the exit code. All the work lives in the library.
+//! (each cause once) and sets the exit code. All the work lives in the library.
 
 mod cli;
 
@@ -10,7 +10,7 @@ fn main() -> std::process::ExitCode {
     match cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", cli::error_message(&e));
             std::process::ExitCode::FAILURE
         }
     }

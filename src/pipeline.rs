@@ -54,10 +54,10 @@ pub struct FitConfig {
 }
 
 impl FitConfig {
-    /// Default blob budget.
-    pub const DEFAULT_BLOBS: usize = 300;
-    /// Default number of candidate seeds.
-    pub const DEFAULT_CANDIDATES: usize = 2500;
+    /// Default blob budget (the decomposition's default selection).
+    pub const DEFAULT_BLOBS: usize = DecomposeConfig::DEFAULT_MAX_SELECTED;
+    /// Default number of candidate seeds (the decomposition's).
+    pub const DEFAULT_CANDIDATES: usize = DecomposeConfig::DEFAULT_CANDIDATES;
     /// Default number of surface samples.
     pub const DEFAULT_SAMPLES: usize = 60_000;
     /// Fewest surface samples a fit accepts.

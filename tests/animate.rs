@@ -84,7 +84,7 @@ fn bits(b: &Blob) -> [u64; 12] {
 }
 
 fn aggregation(model: &BlobModel, seed: u64) -> animate::AggregationPlan {
-    let anim = Animation::Aggregation(AggregationConfig::default());
+    let anim: Animation = Animation::Aggregation(AggregationConfig::default());
     match animate::plan(&anim, model, timeline(), seed).unwrap() {
         Plan::Aggregation(p) => p,
         _ => unreachable!(),
@@ -92,7 +92,7 @@ fn aggregation(model: &BlobModel, seed: u64) -> animate::AggregationPlan {
 }
 
 fn diffusion(model: &BlobModel) -> animate::DiffusionPlan {
-    let anim = Animation::Diffusion(DiffusionConfig::default());
+    let anim: Animation = Animation::Diffusion(DiffusionConfig::default());
     match animate::plan(&anim, model, timeline(), 7).unwrap() {
         Plan::Diffusion(p) => p,
         _ => unreachable!(),
@@ -103,7 +103,7 @@ fn diffusion(model: &BlobModel) -> animate::DiffusionPlan {
 fn last_frame_is_the_model_bit_for_bit() {
     let model = shell_model(60);
     for anim in [
-        Animation::Aggregation(AggregationConfig::default()),
+        Animation::<()>::Aggregation(AggregationConfig::default()),
         Animation::Diffusion(DiffusionConfig::default()),
     ] {
         let plan = animate::plan(&anim, &model, timeline(), 3).unwrap();
@@ -284,13 +284,13 @@ fn diffusion_blobs_grow_out_of_a_visible_blob() {
 #[test]
 fn bad_settings_are_errors() {
     let model = shell_model(10);
-    let anim = Animation::Aggregation(AggregationConfig {
+    let anim: Animation = Animation::Aggregation(AggregationConfig {
         speed: (0.5, 0.1),
         ..AggregationConfig::default()
     });
     let e = animate::plan(&anim, &model, timeline(), 1).unwrap_err();
     assert!(e.to_string().contains("animation.speed"), "{e}");
-    let anim = Animation::Diffusion(DiffusionConfig {
+    let anim: Animation = Animation::Diffusion(DiffusionConfig {
         category_ii: f64::NAN,
         ..DiffusionConfig::default()
     });
@@ -450,9 +450,12 @@ fn horse_diffusion_meets_the_bars_standing_upright() {
     // Upright, seen from the side (camera from +X): longer along Z than tall, taller than wide.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = std::env::temp_dir().join(format!("nephele-horse-up-{}", std::process::id()));
-    let (model, _) = nephele::scene::load_target(&scene, &out).unwrap();
-    let prep = nephele::scene::shot::prepare(&scene, model).unwrap();
-    let size = prep.bounds.size();
+    let opts = nephele::scene::RenderOptions {
+        output: Some(out.clone()),
+        ..Default::default()
+    };
+    let shot = nephele::scene::Shot::open(scene.clone(), &opts).unwrap();
+    let size = shot.prepared().unwrap().bounds.size();
     assert!(
         size.z > size.y && size.y > size.x,
         "horse box {size} (root {})",
@@ -498,8 +501,8 @@ fn morph_pairs_splits_and_merges() {
         b.center *= 1.3;
     }
     let more = shell_model(45);
-    let anim = Animation::Morph(MorphConfig {
-        from: nephele::scene::Target::Model("unused".into()),
+    let anim: Animation = Animation::Morph(MorphConfig {
+        from: (),
         stagger: 0.4,
         lead_seconds: 0.25,
         hold_seconds: 0.25,

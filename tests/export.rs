@@ -84,15 +84,29 @@ struct Dump {
     voxels: Vec<([i32; 3], [f64; 3], f32)>,
 }
 
-/// Run `tools/vdb_dump.py` on `path`; `None` (after saying why) when OpenVDB's python module
-/// is not installed.
+/// Run `tools/vdb_dump.py` on `path` for the `density` grid; `None` (after saying why) when
+/// OpenVDB's python module is not installed.
 fn openvdb_read(path: &Path) -> Option<Dump> {
-    let out = path.with_extension("dump.txt");
+    let (header, voxels) = openvdb_grid(path, "density")?;
+    let voxels = voxels
+        .into_iter()
+        .map(|(ijk, p, v)| (ijk, p, v[0]))
+        .collect();
+    Some(Dump { header, voxels })
+}
+
+/// Active voxels as OpenVDB reads them: `(ijk, world centre, value components)`.
+type Voxels = Vec<([i32; 3], [f64; 3], Vec<f32>)>;
+
+/// Run `tools/vdb_dump.py` on grid `name` of `path`: its JSON header and active voxels;
+/// `None` (after saying why) when OpenVDB's python module is not installed.
+fn openvdb_grid(path: &Path, name: &str) -> Option<(serde_json::Value, Voxels)> {
+    let out = path.with_extension(format!("{name}.dump.txt"));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/vdb_dump.py");
     let run = Command::new("/usr/bin/python3")
         .arg(&script)
         .arg(path)
-        .arg("density")
+        .arg(name)
         .arg(&out)
         .output();
     let run = match run {
@@ -123,10 +137,11 @@ fn openvdb_read(path: &Path) -> Option<Dump> {
             let w: Vec<&str> = l.split(' ').collect();
             let i = |k: usize| w[k].parse::<i32>().unwrap();
             let f = |k: usize| w[k].parse::<f64>().unwrap();
-            ([i(0), i(1), i(2)], [f(3), f(4), f(5)], f(6) as f32)
+            let values = (6..w.len()).map(|k| f(k) as f32).collect();
+            ([i(0), i(1), i(2)], [f(3), f(4), f(5)], values)
         })
         .collect();
-    Some(Dump { header, voxels })
+    Some((header, voxels))
 }
 
 #[test]
@@ -284,6 +299,11 @@ fn vol_holds_the_grid_densely() {
 
 /// A scene folder holding `model.ron` (the test cloud) and `shot.ron` with `extra` fields.
 fn cloud_scene(test: &str, extra: &str) -> (PathBuf, PathBuf) {
+    cloud_scene_with(test, "Diffusion(())", 8, extra)
+}
+
+/// [`cloud_scene`] with the given `animation` at `fps` frames per second.
+fn cloud_scene_with(test: &str, animation: &str, fps: u32, extra: &str) -> (PathBuf, PathBuf) {
     use nephele::blobby::model_file::MODEL_VERSION;
     use nephele::blobby::{BlobModel, SourceInfo, save_model};
     let dir = temp_dir(test);
@@ -306,9 +326,9 @@ fn cloud_scene(test: &str, extra: &str) -> (PathBuf, PathBuf) {
     std::fs::write(
         &path,
         format!(
-            "Scene(target: Model(\"model.ron\"), animation: Diffusion(()), \
+            "Scene(target: Model(\"model.ron\"), animation: {animation}, \
              camera: Auto((azimuth_deg: 40.0, elevation_deg: 20.0, orbit_deg: 60.0)), \
-             shot: (width: 48, height: 30, fps: 8, seconds: 1.0), seed: 3, {extra})"
+             shot: (width: 48, height: 30, fps: {fps}, seconds: 1.0), seed: 3, {extra})"
         ),
     )
     .unwrap();
@@ -329,7 +349,7 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     let s = scene::load_scene(&path).unwrap();
     let out = dir.join("out");
     let opts = RenderOptions {
-        frames: Some((6, 6)),
+        frames: Some(nephele::scene::frames::FrameSelection::range(6, 6)),
         output: Some(out.clone()),
         ..RenderOptions::default()
     };
@@ -350,10 +370,8 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     let to_cam = attrs.world_to_camera.expect("worldToCamera");
     let to_ndc = attrs.world_to_normalized_device.expect("worldToNDC");
     // The renderer's camera of that frame (the orbit makes it differ from frame 1's).
-    let (model, _) = scene::load_target(&s, &out).unwrap();
-    let prep = scene::shot::prepare(&s, model).unwrap();
-    let setup = scene::shot::shot_setup(&s, &opts).unwrap();
-    let settings = scene::shot::frame_settings(&s, &prep, &setup, 5, false);
+    let shot = scene::Shot::open(s.clone(), &opts).unwrap();
+    let settings = shot.settings(5).unwrap();
     let rays = nephele::render::camera::CameraRays::new(&settings.camera, 48, 30);
     let (pixels, points) = known_points(&settings.camera);
     for (want, p) in pixels.iter().zip(points) {
@@ -452,16 +470,14 @@ fn usd_stage_camera_projects_like_the_renderer() {
         output: Some(dir.join("out")),
         ..RenderOptions::default()
     };
-    let (model, _) = scene::load_target(&s, &dir.join("out")).unwrap();
-    let prep = scene::shot::prepare(&s, model).unwrap();
-    let setup = scene::shot::shot_setup(&s, &opts).unwrap();
+    let shot = scene::Shot::open(s.clone(), &opts).unwrap();
     let first = RenderOptions {
-        frames: Some((1, 1)),
+        frames: Some(nephele::scene::frames::FrameSelection::range(1, 1)),
         ..opts.clone()
     };
     scene::render_shot(&s, &first, &mut |_| {}).unwrap();
     for frame in [1u32, 5, 8] {
-        let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
+        let settings = shot.settings(shot.index(frame)).unwrap();
         let (pixels, points) = known_points(&settings.camera);
         let mut cmd = Command::new(&python);
         cmd.arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/usd_project.py"))
@@ -498,6 +514,11 @@ fn usd_stage_camera_projects_like_the_renderer() {
             (Some("DistantLight"), Some("DomeLight"))
         );
         assert_eq!(j["field_name"], "density");
+        // The velocity beside it, in the same frame files.
+        let vel = &j["fields"]["vel"];
+        assert_eq!(vel["field_name"], "vel");
+        assert_eq!(vel["data_type"], "float3");
+        assert_eq!(vel["vdb"], format!("../out/shot_{frame:04}.vdb"));
         assert_eq!(j["vdb"], format!("../out/shot_{frame:04}.vdb"));
         // USD resolves the path of the frame rendered (only existing files resolve).
         let resolved = j["vdb_resolved"].as_str().unwrap();
@@ -652,13 +673,11 @@ fn bench_duck_vdb_frames() {
             output: Some(cache.clone()),
             ..RenderOptions::default()
         };
-        let (model, _) = scene::load_target(&s, &cache).unwrap();
-        let prep = scene::shot::prepare(&s, model).unwrap();
-        let setup = scene::shot::shot_setup(&s, &opts).unwrap();
-        let voxel = export::voxel_size(None, &prep.bounds);
+        let shot = scene::Shot::open(s, &opts).unwrap();
+        let voxel = export::voxel_size(None, &shot.prepared().unwrap().bounds);
         for frame in frames {
-            let settings = scene::shot::frame_settings(&s, &prep, &setup, frame - 1, false);
-            let blobs = prep.plan.frame(frame as usize - 1);
+            let settings = shot.settings(shot.index(frame)).unwrap();
+            let blobs = shot.blobs(shot.index(frame)).unwrap();
             let t0 = Instant::now();
             let grid = export::frame_grid(&settings, &blobs, voxel).unwrap();
             let t1 = Instant::now();
@@ -679,4 +698,73 @@ fn bench_duck_vdb_frames() {
             );
         }
     }
+}
+
+/// The `vel` grid of a frame in flight, read by OpenVDB: beside `density`, with its lattice and
+/// active voxels, its metadata, and values that match the blobs' own motion as the dumps of
+/// the neighbouring frames give it.
+#[test]
+fn openvdb_reads_vel_beside_density_and_it_matches_the_blobs_motion() {
+    let (dir, path) = cloud_scene_with(
+        "vel",
+        "Aggregation((hold_seconds: 0.25))",
+        48,
+        "output: (formats: [Vdb], voxel: 0.03)",
+    );
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "11..13", "--dump-blobs", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let vdb = out.join("shot_0012.vdb");
+    let Some((dh, density)) = openvdb_grid(&vdb, "density") else {
+        return;
+    };
+    let (vh, vel) = openvdb_grid(&vdb, "vel").expect("OpenVDB read the density");
+    assert_eq!(vh["grids"], serde_json::json!(["density", "vel"]));
+    assert_eq!(vh["type"], "Vec3SGrid");
+    assert_eq!(vh["class"], "unknown");
+    assert_eq!(vh["metadata"]["fps"], 48.0);
+    assert_eq!(vh["metadata"]["vector_type"], "contravariant relative");
+    assert_eq!(vh["metadata"]["is_local_space"], false);
+    for key in ["voxel_size", "index_bbox", "world_bbox", "active"] {
+        assert_eq!(vh[key], dh[key], "{key}");
+    }
+    // The same active voxels at the same world centres.
+    assert_eq!(vel.len(), density.len());
+    let mut a: Vec<_> = density
+        .iter()
+        .map(|v| (v.0, v.1.map(f64::to_bits)))
+        .collect();
+    let mut b: Vec<_> = vel.iter().map(|v| (v.0, v.1.map(f64::to_bits))).collect();
+    a.sort();
+    b.sort();
+    assert!(a == b, "vel's active voxels differ from density's");
+    // The blobs' motion from the dumps of frames 11 and 13 (a centred difference over two
+    // frames, 1/24 s) against OpenVDB's values.
+    let load = |f: u32| -> Vec<Blob> {
+        let text = std::fs::read_to_string(out.join(format!("shot_{f:04}.blobs.ron"))).unwrap();
+        ron::from_str(&text).unwrap()
+    };
+    let field = nephele::animate::VelocityField::new(&load(11), &load(12), &load(13), 2.0 / 48.0);
+    let (mut err2, mut norm2, mut n) = (0.0f64, 0.0f64, 0usize);
+    for (_, p, v) in &vel {
+        let expected = field.velocity(DVec3::from(*p));
+        let got = DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+        err2 += (got - expected).length_squared();
+        norm2 += expected.length_squared();
+        n += 1;
+    }
+    let (rms, speed) = ((err2 / n as f64).sqrt(), (norm2 / n as f64).sqrt());
+    eprintln!("vel: {n} voxels, RMS speed {speed:.4}, RMS difference {rms:.5} units/s");
+    // The cloud of diagonal ~1.6 flies in over 0.625 s: a few units a second.
+    assert!(speed > 0.5, "the cloud should be moving: RMS speed {speed}");
+    assert!(
+        rms < 0.03 * speed,
+        "vel differs from the dumps' motion: {rms} vs {speed}"
+    );
 }

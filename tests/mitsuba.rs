@@ -29,7 +29,7 @@ use std::time::Instant;
 use nephele::render::camera::CameraRays;
 use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
 use nephele::render::{BlobMedium, LightGrid, RenderSettings, SkyDome, render_medium};
-use nephele::scene::{RenderOptions, load_scene, load_target, shot};
+use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// The Python interpreter with mitsuba, if any.
 fn python() -> Option<String> {
@@ -108,16 +108,16 @@ fn write_inputs(
     grid_res: u32,
     dir: &Path,
 ) -> (f64, f64) {
-    let scene = load_scene(scene).unwrap();
-    let opts = RenderOptions::default();
-    let mut setup = shot::shot_setup(&scene, &opts).unwrap();
-    (setup.width, setup.height) = size;
-    let (model, _) =
-        load_target(&scene, &std::env::temp_dir().join("nephele-mitsuba-cache")).unwrap();
-    let prep = shot::prepare(&scene, model).unwrap();
-    let k = frame.unwrap_or(setup.total) - 1;
-    let blobs = prep.plan.frame(k as usize);
-    let mut s = shot::frame_settings(&scene, &prep, &setup, k, false);
+    let mut scene = load_scene(scene).unwrap();
+    (scene.file.shot.width, scene.file.shot.height) = size;
+    let opts = RenderOptions {
+        output: Some(std::env::temp_dir().join("nephele-mitsuba-cache")),
+        ..RenderOptions::default()
+    };
+    let shot = Shot::open(scene, &opts).unwrap();
+    let k = shot.index(frame.unwrap_or(shot.total()));
+    let blobs = shot.blobs(k).unwrap();
+    let mut s = shot.settings(k).unwrap();
     if let Ok(q) = std::env::var("NEPHELE_MITSUBA_QUALITY") {
         // Experiments: "shadow_grid,optical_step,samples[,step_scale]".
         let v: Vec<f32> = q.split(',').map(|x| x.parse().unwrap()).collect();
@@ -147,7 +147,11 @@ fn write_inputs(
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
         let m = BlobMedium::new(&s, &blobs);
-        let f = render_medium(&s, &m, &LightGrid::for_frame(&s, &m));
+        let f = render_medium(
+            &s,
+            &m,
+            &LightGrid::for_frame(&s, &m.for_lattice(s.quality.shadow_grid)),
+        );
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"

@@ -319,7 +319,7 @@ fn shot_renderer_matches_render_frame_bit_for_bit() {
 }
 
 /// Hash of the 64×36 frame above (update deliberately when the renderer's output changes).
-const PINNED: u64 = 0x14cd_dcb3_ff91_7a90;
+const PINNED: u64 = 0xf5dd_1f0f_532d_9678;
 
 #[test]
 fn exr_reads_back_with_channels_and_values() {
@@ -701,10 +701,11 @@ fn preview_cli_writes_frames_and_gif() {
 }
 
 /// Fraction of the final frame's alpha (builtin scenes, 160×90) inside the target mesh's
-/// silhouette dilated by 1 % of the image diagonal: density only where the model's surface is.
+/// silhouette dilated by 1 % of the image diagonal: the billows' tops push the surface out a
+/// little, never far from the model (at most 5 % of the alpha lies beyond that band).
 #[test]
 fn final_frame_alpha_lies_inside_the_target_silhouette() {
-    use nephele::scene::{RenderOptions, Target, load_scene, load_target, shot};
+    use nephele::scene::{RenderOptions, Shot, Target, load_scene};
     for name in builtin_scenes::NAMES {
         let scene = match load_scene(&builtin_scenes::path(name)) {
             Ok(s) => s,
@@ -721,14 +722,16 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
         for p in &mut mesh.positions {
             *p = scene.file.transform.apply_point(*p);
         }
-        let mut setup = shot::shot_setup(&scene, &RenderOptions::default()).unwrap();
-        (setup.width, setup.height) = (160, 90);
-        let cache = std::env::temp_dir().join(format!("nephele-silhouette-{name}"));
-        let (model, _) = load_target(&scene, &cache).unwrap();
-        let prep = shot::prepare(&scene, model).unwrap();
-        let k = setup.total - 1;
-        let s = shot::frame_settings(&scene, &prep, &setup, k, false);
-        let frame = render_frame(&s, &prep.plan.frame(k as usize));
+        let mut scene = scene;
+        (scene.file.shot.width, scene.file.shot.height) = (160, 90);
+        let opts = RenderOptions {
+            output: Some(std::env::temp_dir().join(format!("nephele-silhouette-{name}"))),
+            ..RenderOptions::default()
+        };
+        let shot = Shot::open(scene.clone(), &opts).unwrap();
+        let k = shot.total() - 1;
+        let s = shot.settings(k).unwrap();
+        let frame = render_frame(&s, &shot.blobs(k).unwrap());
         let inside = silhouette(&s, &mesh, 0.01 * (160f32.hypot(90.0)));
         // The test can fail: the silhouette is a real part of the frame, not all of it.
         let covered = inside.iter().filter(|&&b| b).count() as f32 / inside.len() as f32;
@@ -746,7 +749,7 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
             "{name}: {:.2} % of the alpha inside the silhouette",
             100.0 * share
         );
-        assert!(share >= 0.99, "{name}: only {share} of the alpha is inside");
+        assert!(share >= 0.95, "{name}: only {share} of the alpha is inside");
     }
 }
 

@@ -10,27 +10,29 @@ mod builtin_scenes;
 
 use std::path::Path;
 
-use nephele::render::{output, render_frame};
-use nephele::scene::{RenderOptions, load_scene, load_target, shot};
+use nephele::render::output;
+use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// Frames `frames` (1-based) of `scene`, tone-mapped as the PNG frames are.
 fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::RgbImage>> {
     let scene = load_scene(scene)
         .map_err(|e| eprintln!("skipping: {e}"))
         .ok()?;
-    let setup = shot::shot_setup(&scene, &RenderOptions::default()).ok()?;
-    let cache = std::env::temp_dir().join("nephele-sheets");
-    let (model, _) = load_target(&scene, &cache)
+    let opts = RenderOptions {
+        output: Some(std::env::temp_dir().join("nephele-sheets")),
+        ..RenderOptions::default()
+    };
+    let shot = Shot::open(scene, &opts).ok()?;
+    shot.prepared()
         .map_err(|e| eprintln!("skipping: {e}"))
         .ok()?;
-    let prep = shot::prepare(&scene, model).unwrap();
     Some(
-        frames(setup.total)
+        frames(shot.total())
             .into_iter()
             .map(|f| {
-                let k = f - 1;
-                let s = shot::frame_settings(&scene, &prep, &setup, k, false);
-                output::tonemapped(&render_frame(&s, &prep.plan.frame(k as usize)), &s)
+                let k = shot.index(f);
+                let s = shot.settings(k).unwrap();
+                output::tonemapped(&shot.render_frame(k).unwrap(), &s)
             })
             .collect(),
     )

@@ -4,7 +4,8 @@
 Usage: usd_project.py STAGE.usda WIDTH HEIGHT FRAME X Y Z [X Y Z ...]
 
 Prints one JSON object: the stage's time codes and rates, the volume's density field, its VDB
-path at FRAME (as authored and resolved), the light types, and for each world point the pixel
+path at FRAME (as authored and resolved), every field of the volume (`fields`: name → field
+name, data type and VDB path at FRAME), the camera's shutter open and close, the light types, and for each world point the pixel
 (x right, y down, in pixels of a WIDTH x HEIGHT image) where the stage's camera at FRAME
 projects it. Exit status 3 when `pxr` cannot be imported (the caller skips)."""
 import json
@@ -29,6 +30,14 @@ for i in range(0, len(coords), 3):
 volume = UsdVol.Volume(stage.GetPrimAtPath("/shot/cloud"))
 field = volume.GetFieldPath("density")
 asset = UsdVol.OpenVDBAsset(stage.GetPrimAtPath(field)).GetFilePathAttr().Get(Usd.TimeCode(frame))
+fields = {}
+for name, field_path in volume.GetFieldPaths().items():
+    prim = UsdVol.OpenVDBAsset(stage.GetPrimAtPath(field_path))
+    fields[name] = {
+        "field_name": prim.GetFieldNameAttr().Get(),
+        "data_type": prim.GetFieldDataTypeAttr().Get(),
+        "vdb": prim.GetFilePathAttr().Get(Usd.TimeCode(frame)).path,
+    }
 print(json.dumps({
     "start": stage.GetStartTimeCode(),
     "end": stage.GetEndTimeCode(),
@@ -42,5 +51,7 @@ print(json.dumps({
     "sun": stage.GetPrimAtPath("/shot/sun").GetTypeName(),
     "sky": stage.GetPrimAtPath("/shot/sky").GetTypeName(),
     "sun_intensity": UsdLux.DistantLight(stage.GetPrimAtPath("/shot/sun")).GetIntensityAttr().Get(),
+    "fields": fields,
+    "shutter": [camera.GetShutterOpenAttr().Get(), camera.GetShutterCloseAttr().Get()],
     "pixels": pixels,
 }))

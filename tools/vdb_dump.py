@@ -3,9 +3,10 @@
 
 Usage: vdb_dump.py FILE.vdb GRID OUT.txt
 
-OUT.txt: a first line of JSON (grid names, name, class, voxel size, active count, index and
-world bounding boxes of the active voxels, value range), then one line per active voxel:
-`i j k x y z value` with (x, y, z) the voxel centre from the grid's own transform.
+OUT.txt: a first line of JSON (grid names, name, class, metadata, voxel size, active count,
+index and world bounding boxes of the active voxels, value range — of the vector length for a
+vector grid), then one line per active voxel: `i j k x y z value` (`i j k x y z vx vy vz` for a
+vector grid such as `vel`) with (x, y, z) the voxel centre from the grid's own transform.
 Exit status 3 when pyopenvdb cannot be imported (the caller skips)."""
 import json
 import sys
@@ -29,18 +30,26 @@ for item in grid.citerOnValues():
     ijk = item.min
     x, y, z = xf.indexToWorld(ijk)
     v = item.value
-    vmin, vmax = min(vmin, v), max(vmax, v)
-    lines.append(f"{ijk[0]} {ijk[1]} {ijk[2]} {x!r} {y!r} {z!r} {v!r}")
+    if isinstance(v, tuple):
+        length = sum(c * c for c in v) ** 0.5
+        vmin, vmax = min(vmin, length), max(vmax, length)
+        text = " ".join(repr(c) for c in v)
+    else:
+        vmin, vmax = min(vmin, v), max(vmax, v)
+        text = repr(v)
+    lines.append(f"{ijk[0]} {ijk[1]} {ijk[2]} {x!r} {y!r} {z!r} {text}")
 header = {
     "grids": names,
     "name": grid.name,
     "class": str(grid.gridClass),
+    "metadata": {k: grid[k] for k in grid.metadata},
     "voxel_size": list(xf.voxelSize()),
     "active": grid.activeVoxelCount(),
     "index_bbox": [list(lo), list(hi)],
     "world_bbox": [list(xf.indexToWorld(lo)), list(xf.indexToWorld(hi))],
     "value_range": [vmin, vmax] if lines else [0.0, 0.0],
     "background": grid.background,
+    "type": type(grid).__name__,
 }
 with open(out, "w") as f:
     f.write(json.dumps(header) + "\n")

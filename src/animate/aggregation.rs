@@ -316,7 +316,12 @@ impl AggregationPlan {
 
     /// The motion's progress (after easing) at frame `k`, in `[0, 1]`.
     pub fn progress(&self, k: usize) -> f64 {
-        let s = self.timeline.progress(k);
+        self.progress_at(self.timeline.time(k))
+    }
+
+    /// The motion's progress (after easing) at `t` seconds, in `[0, 1]`.
+    pub fn progress_at(&self, t: f64) -> f64 {
+        let s = self.timeline.progress_at(t);
         match self.easing {
             Easing::Linear => s,
             Easing::EaseOut => 1.0 - (1.0 - s) * (1.0 - s),
@@ -325,7 +330,12 @@ impl AggregationPlan {
 
     /// The blobs of frame `k`; the target itself once the motion is over.
     pub fn frame(&self, k: usize) -> Vec<Blob> {
-        let s = self.progress(k);
+        self.at(self.timeline.time(k))
+    }
+
+    /// The blobs at `t` seconds (any time; see [`super::Plan::at`]).
+    pub fn at(&self, t: f64) -> Vec<Blob> {
+        let s = self.progress_at(t);
         if s >= 1.0 {
             return self.target.clone();
         }

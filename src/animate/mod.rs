@@ -20,6 +20,7 @@ pub mod morph;
 pub mod pieces;
 mod repulsion;
 pub mod stats;
+pub mod velocity;
 
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -30,6 +31,7 @@ use crate::geometry::Aabb;
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
 pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 pub use morph::{MorphConfig, MorphPlan};
+pub use velocity::{BlobMotion, VelocityField};
 
 /// Errors of the animation stage: settings that cannot produce an animation.
 #[derive(Debug, thiserror::Error)]
@@ -96,25 +98,26 @@ pub(crate) fn sphere_blob(c: DVec3, r: f64) -> Blob {
     )
 }
 
-/// One animation scheme with its settings (the scene file's `animation` field).
+/// One animation scheme with its settings (the scene file's `animation` field). `S` names a
+/// morph's source model in the caller's terms (see [`MorphConfig`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub enum Animation {
+pub enum Animation<S = ()> {
     /// Clusters of blobs fly in from outside and gather into the target (paper §5.2.1).
     Aggregation(AggregationConfig),
     /// The target grows from its largest blob outward (paper §5.2.2).
     Diffusion(DiffusionConfig),
     /// One blob model turns into another (metamorphosis).
-    Morph(MorphConfig),
+    Morph(MorphConfig<S>),
 }
 
-impl Default for Animation {
+impl<S> Default for Animation<S> {
     fn default() -> Self {
         Animation::Diffusion(DiffusionConfig::default())
     }
 }
 
-impl Animation {
+impl<S> Animation<S> {
     /// Check every setting; errors name the field as `animation.NAME`.
     pub fn validate(&self) -> Result<(), AnimateError> {
         match self {
@@ -159,11 +162,23 @@ impl Timeline {
     /// Progress of the motion at frame `k`, in `[0, 1]`; exactly 1 from the end of the motion on
     /// (so the last frame is always 1).
     pub fn progress(&self, k: usize) -> f64 {
+        self.progress_at(self.time(k))
+    }
+
+    /// Progress of the motion at `t` seconds (any time, also between frames): 0 before the
+    /// shot, exactly 1 from the end of the motion and from the last frame's time on.
+    /// `progress_at(time(k)) == progress(k)` bit for bit.
+    pub fn progress_at(&self, t: f64) -> f64 {
         let m = self.motion_seconds();
-        if m <= 0.0 || k + 1 >= self.frames {
+        if m <= 0.0 || t >= self.time(self.frames.saturating_sub(1)) {
             return 1.0;
         }
-        (self.time(k) / m).clamp(0.0, 1.0)
+        (t / m).clamp(0.0, 1.0)
+    }
+
+    /// Time of the last frame in seconds (0 for a shot of one frame).
+    pub fn end(&self) -> f64 {
+        self.time(self.frames.saturating_sub(1))
     }
 }
 
@@ -180,8 +195,8 @@ pub enum Plan {
 
 /// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`. A
 /// morph needs [`plan_with_source`].
-pub fn plan(
-    animation: &Animation,
+pub fn plan<S>(
+    animation: &Animation<S>,
     model: &BlobModel,
     timeline: Timeline,
     seed: u64,
@@ -190,8 +205,8 @@ pub fn plan(
 }
 
 /// [`plan`] with the morph's source model (ignored by the other schemes).
-pub fn plan_with_source(
-    animation: &Animation,
+pub fn plan_with_source<S>(
+    animation: &Animation<S>,
     model: &BlobModel,
     source: Option<&BlobModel>,
     timeline: Timeline,
@@ -238,6 +253,17 @@ impl Plan {
             Plan::Aggregation(p) => p.frame(k),
             Plan::Diffusion(p) => p.frame(k),
             Plan::Morph(p) => p.frame(k),
+        }
+    }
+
+    /// The blobs at `t` seconds from the first frame, at any time (between frames for motion
+    /// blur and velocities; before the shot the first pose, from the end of the motion on the
+    /// target). `at(timeline().time(k))` equals `frame(k)` bit for bit.
+    pub fn at(&self, t: f64) -> Vec<Blob> {
+        match self {
+            Plan::Aggregation(p) => p.at(t),
+            Plan::Diffusion(p) => p.at(t),
+            Plan::Morph(p) => p.at(t),
         }
     }
 

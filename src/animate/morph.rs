@@ -25,13 +25,14 @@ use super::{
 };
 use crate::blobby::Blob;
 
-/// Settings of the morph scheme. `from` is read by the scene (any target: a model file, a
-/// fitted mesh, or `Model("builtin:cumulus")`).
+/// Settings of the morph scheme. `from` names the source model in the caller's terms (the scene
+/// file's target description; `()` where the caller has the model already): this stage never
+/// reads it, [`super::plan_with_source`] takes the loaded source model.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct MorphConfig {
-    /// The model the cloud starts as.
-    pub from: crate::scene::Target,
+pub struct MorphConfig<S = ()> {
+    /// The model the cloud starts as, as the caller names it.
+    pub from: S,
     /// Fraction of the motion over which the blobs' starts are spread, in `[0, 0.9]`.
     #[serde(default = "default_stagger")]
     pub stagger: f64,
@@ -53,7 +54,7 @@ fn default_hold() -> f64 {
     0.5
 }
 
-impl MorphConfig {
+impl<S> MorphConfig<S> {
     /// Check ranges; errors name the field as `animation.NAME`.
     pub fn validate(&self) -> Result<(), AnimateError> {
         check_fraction("stagger", self.stagger, 0.9)?;
@@ -79,8 +80,8 @@ pub struct MorphPlan {
 
 impl MorphPlan {
     /// Plan the morph of `source` into `target` (config already validated).
-    pub fn new(
-        cfg: &MorphConfig,
+    pub fn new<S>(
+        cfg: &MorphConfig<S>,
         source: &[Blob],
         target: &[Blob],
         timeline: Timeline,
@@ -203,7 +204,12 @@ impl MorphPlan {
 
     /// The blobs of frame `k` (target first, then merged source blobs).
     pub fn frame(&self, k: usize) -> Vec<Blob> {
-        let done = self.timeline.progress(k) >= 1.0;
+        self.at(self.timeline.time(k))
+    }
+
+    /// The blobs at `t` seconds (any time; see [`super::Plan::at`]).
+    pub fn at(&self, t: f64) -> Vec<Blob> {
+        let done = self.timeline.progress_at(t) >= 1.0;
         if done {
             let mut out = self.target.clone();
             out.extend(
@@ -214,7 +220,7 @@ impl MorphPlan {
             return out;
         }
         let motion = (self.timeline.motion_seconds() - self.lead).max(1e-9);
-        let u = ((self.timeline.time(k) - self.lead) / motion).clamp(0.0, 1.0);
+        let u = ((t - self.lead) / motion).clamp(0.0, 1.0);
         (0..self.to.len())
             .map(|i| {
                 let e = smoothstep((u - self.start[i]) / self.span);

@@ -62,6 +62,24 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// The error and its causes as one line, `outer: cause: …`, each cause said once: a library
+/// error's message often already ends with its source's (`{path}: {source}`), and the source is
+/// also the next link of the chain, so a link whose text the line already holds is left out.
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
+}
+
 /// Load a mesh and print its warnings on stderr.
 pub fn load_mesh(source: &str) -> anyhow::Result<nephele::mesh::LoadedMesh> {
     let loaded = nephele::mesh::load(source)?;
@@ -69,4 +87,41 @@ pub fn load_mesh(source: &str) -> anyhow::Result<nephele::mesh::LoadedMesh> {
         eprintln!("warning: {w}");
     }
     Ok(loaded)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An error whose message includes its source's, as `thiserror`'s `{path}: {source}` does.
+    #[derive(Debug)]
+    struct Wrapping(std::io::Error);
+
+    impl std::fmt::Display for Wrapping {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "frame.exr: {}", self.0)
+        }
+    }
+
+    impl std::error::Error for Wrapping {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.0)
+        }
+    }
+
+    #[test]
+    fn each_cause_is_printed_once() {
+        let disk = std::io::Error::from_raw_os_error(28);
+        let cause = disk.to_string();
+        let e = anyhow::Error::new(Wrapping(disk)).context("rendering shot.ron");
+        let line = error_message(&e);
+        assert_eq!(line.matches(&cause).count(), 1, "{line}");
+        assert!(
+            line.starts_with("rendering shot.ron: frame.exr: "),
+            "{line}"
+        );
+        // A cause the outer messages do not repeat is still printed.
+        let plain = anyhow::anyhow!("no such file").context("reading x.ron");
+        assert_eq!(error_message(&plain), "reading x.ron: no such file");
+    }
 }

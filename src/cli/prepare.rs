@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use nephele::scene::provenance::FrameStatus;
 use nephele::scene::target::TargetOrigin;
-use nephele::scene::{self, RenderOptions};
+use nephele::scene::{self, RenderOptions, Shot};
 
 /// Arguments of `nephele prepare`.
 #[derive(Debug, clap::Args)]
@@ -22,25 +23,50 @@ pub struct Args {
 /// Run `nephele prepare`: check the output folder, fit (or find) the target cache, plan the
 /// animation once to surface its errors, and create the frames folder.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = scene::load_scene(&args.scene)?;
     let opts = RenderOptions {
         output: args.output,
         preview: args.preview,
         ..RenderOptions::default()
     };
-    let setup = scene::shot::shot_setup(&scene, &opts)?;
-    nephele::atomic::check_writable(&setup.dir)
-        .with_context(|| format!("output folder {} is not writable", setup.dir.display()))?;
-    let (model, origin) = scene::load_target(&scene, &setup.cache_dir)
-        .with_context(|| format!("preparing {}", args.scene.display()))?;
-    scene::shot::prepare(&scene, model)?;
-    std::fs::create_dir_all(&setup.dir)
-        .with_context(|| format!("creating {}", setup.dir.display()))?;
+    let shot = Shot::open(scene::load_scene(&args.scene)?, &opts)?;
+    nephele::atomic::check_writable(shot.dir())
+        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
+    let origin = &shot
+        .prepared()
+        .with_context(|| format!("preparing {}", args.scene.display()))?
+        .origin;
+    std::fs::create_dir_all(shot.dir())
+        .with_context(|| format!("creating {}", shot.dir().display()))?;
     match origin {
         TargetOrigin::Fitted(p) => eprintln!("fitted the target, cached in {}", p.display()),
         TargetOrigin::Cached(p) => eprintln!("target already cached in {}", p.display()),
         TargetOrigin::ModelFile(p) => eprintln!("target is the model file {}", p.display()),
     }
-    eprintln!("{}: ready to render", setup.dir.display());
+    // The render's own rule: how many of the frames a render would skip, and why not the rest.
+    let statuses = shot.statuses()?;
+    let done = statuses
+        .iter()
+        .filter(|(_, s)| *s == FrameStatus::UpToDate)
+        .count();
+    let mut stale: Vec<(String, u32)> = Vec::new();
+    for (_, s) in statuses {
+        if let FrameStatus::OutOfDate(reason) = s {
+            match stale.iter_mut().find(|(r, _)| *r == reason) {
+                Some((_, n)) => *n += 1,
+                None => stale.push((reason, 1)),
+            }
+        }
+    }
+    let why: Vec<String> = stale.iter().map(|(r, n)| format!("{n} {r}")).collect();
+    eprintln!(
+        "{}: ready to render; {done} of {} frames up to date{}",
+        shot.dir().display(),
+        shot.frames().len(),
+        if why.is_empty() {
+            String::new()
+        } else {
+            format!(", out of date: {}", why.join("; "))
+        }
+    );
     Ok(())
 }

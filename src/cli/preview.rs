@@ -13,6 +13,7 @@ use nephele::blobby::BlobModel;
 use nephele::geometry::Aabb;
 use nephele::pipeline::{self, FitConfig};
 use nephele::render::{self, Camera, CloudMaterial, Quality, RenderSettings, Sky, Sun, output};
+use nephele::scene::transform::{TargetTransform, Up};
 
 /// Arguments of `nephele preview`.
 #[derive(Debug, clap::Args)]
@@ -37,6 +38,15 @@ pub struct Args {
     /// Frames per second of the GIF.
     #[arg(long, default_value_t = 12)]
     pub fps: u32,
+    /// The model's up axis, turned to the turntable's up as a scene's `transform.up` does:
+    /// x, y, z, -x, -y or -z (a scanned Z-up mesh such as horse.ply needs `--up z`).
+    #[arg(long, default_value = "y", value_parser = parse_up)]
+    pub up: Up,
+}
+
+fn parse_up(s: &str) -> Result<Up, String> {
+    Up::from_name(s)
+        .ok_or_else(|| format!("'{s}' is not an axis (use one of {})", Up::NAMES.join(", ")))
 }
 
 /// Vertical field of view of the turntable camera, degrees.
@@ -53,7 +63,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.size
     );
     anyhow::ensure!(args.fps >= 1, "--fps must be at least 1");
-    let model = load_or_fit(&args)?;
+    let mut model = load_or_fit(&args)?;
+    TargetTransform {
+        up: args.up,
+        ..TargetTransform::default()
+    }
+    .apply(&mut model.blobs);
     let dir = args
         .output
         .clone()

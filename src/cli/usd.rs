@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use nephele::scene::{self, RenderOptions};
+use nephele::scene::{self, RenderOptions, Shot};
 
 /// Arguments of `nephele usd`.
 #[derive(Debug, clap::Args)]
@@ -21,40 +21,38 @@ pub struct Args {
 
 /// Run `nephele usd`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = scene::load_scene(&args.scene)?;
     let opts = RenderOptions {
         output: args.frames_dir.clone(),
         ..RenderOptions::default()
     };
-    // The stage covers the whole shot (`setup.total`), whatever the scene's `frames` range.
-    let setup = scene::shot::shot_setup(&scene, &opts)?;
-    let (model, _) = scene::load_target(&scene, &setup.cache_dir)
+    // The stage covers the whole shot, whatever the scene's `frames` range.
+    let shot = Shot::open(scene::load_scene(&args.scene)?, &opts)?;
+    shot.prepared()
         .with_context(|| format!("loading the target of {}", args.scene.display()))?;
-    let prep = scene::shot::prepare(&scene, model)?;
     let path = args
         .output
-        .unwrap_or_else(|| setup.dir.join(format!("{}.usda", scene.name)));
+        .unwrap_or_else(|| shot.dir().join(format!("{}.usda", shot.scene().name)));
     let stage_dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(std::path::Path::new("."));
-    let stage = nephele::export::usd::shot_stage(&scene, &prep, &setup, stage_dir);
-    let text = nephele::export::usd::stage_text(&stage);
+    let stage = scene::usd::shot_stage(&shot, stage_dir)?;
+    let text = scene::usd::stage_text(&stage);
     nephele::atomic::write_bytes_atomically(&path, text.as_bytes())
         .with_context(|| format!("writing {}", path.display()))?;
-    let missing = (1..=setup.total)
-        .filter(|&f| !nephele::export::usd::frame_vdb(&scene, &setup.dir, f).is_file())
+    let missing = (0..shot.total())
+        .filter(|&k| !scene::usd::frame_vdb(&shot, shot.number(k)).is_file())
         .count();
     eprintln!(
         "{}: {} frames at {} fps",
         path.display(),
-        setup.total,
-        scene.file.shot.fps
+        shot.total(),
+        shot.scene().file.shot.fps
     );
     if missing > 0 {
         eprintln!(
             "note: {missing} frame VDBs are not in {} yet; render them with `nephele render {} --formats vdb`",
-            setup.dir.display(),
+            shot.dir().display(),
             args.scene.display()
         );
     }

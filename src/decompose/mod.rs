@@ -79,7 +79,7 @@ pub enum Primitive {
 #[derive(Clone, Debug)]
 pub struct DecomposeConfig {
     /// Target number of seed vertices (quadric simplification); default
-    /// [`crate::pipeline::FitConfig::DEFAULT_CANDIDATES`].
+    /// [`DecomposeConfig::DEFAULT_CANDIDATES`].
     pub candidates: usize,
     /// Obstacle shift direction; default outward.
     pub shift: ObstacleShift,
@@ -95,24 +95,32 @@ pub struct DecomposeConfig {
     pub curvature_weight: f64,
     /// Upper clamp of the weight `w`; default 4.0.
     pub max_weight: f64,
-    /// Stop selecting when this many are selected.
+    /// Stop selecting when this many are selected; default
+    /// [`DecomposeConfig::DEFAULT_MAX_SELECTED`].
     pub max_selected: usize,
     /// Stop when the best gain falls below this fraction of the covered (weighted) volume;
     /// default 1e-5 (a few voxels of a 110-voxel model).
     pub min_gain_fraction: f64,
 }
 
+impl DecomposeConfig {
+    /// Default number of candidate seeds (the fit's default too).
+    pub const DEFAULT_CANDIDATES: usize = 2500;
+    /// Default number of ellipsoids selected (the fit's default blob budget).
+    pub const DEFAULT_MAX_SELECTED: usize = 300;
+}
+
 impl Default for DecomposeConfig {
     fn default() -> Self {
         DecomposeConfig {
-            candidates: crate::pipeline::FitConfig::DEFAULT_CANDIDATES,
+            candidates: Self::DEFAULT_CANDIDATES,
             shift: ObstacleShift::Outward,
             epsilon: 0.002,
             primitive: Primitive::Ellipsoid,
             voxels: 110,
             curvature_weight: 0.05,
             max_weight: 4.0,
-            max_selected: 300,
+            max_selected: Self::DEFAULT_MAX_SELECTED,
             min_gain_fraction: 1e-5,
         }
     }

@@ -1,21 +1,22 @@
-//! Clouds that leave nephele: the renderer's density as OpenVDB and Mitsuba `.vol` grids, and
-//! the shot as a USD stage.
+//! Clouds that leave nephele: the renderer's density as OpenVDB and Mitsuba `.vol` grids (the
+//! shot's USD stage, which points at them, is written by [`crate::scene::usd`]).
 //!
 //! In: a frame's blobs and [`RenderSettings`] (the same the frame is rendered with). Out: a
 //! [`DensityGrid`] sampled through the renderer's own [`crate::render::Medium`] (so the files
 //! hold exactly the extinction the renderer marches through, noise included), written by
-//! [`vdb`] and [`vol`]; [`usd`] writes the stage that ties camera, lights and the frame VDBs.
+//! [`vdb`] and [`vol`]; [`velocity`] samples the cloud's velocity on the density's voxels (the
+//! VDB's `vel` grid).
 //!
 //! Units: world (the scene's, after the target transform); values are extinction per world unit.
 
 pub mod grid;
-pub mod usd;
-
 pub mod vdb;
+pub mod velocity;
 pub mod vol;
 
 pub use grid::{DensityGrid, GridError, Leaf, sample_medium};
-pub use vdb::write_vdb;
+pub use vdb::{VdbGrid, write_vdb, write_vdb_grids};
+pub use velocity::{VELOCITY_GRID_NAME, VectorGrid, sample_velocity, velocity_vdb_grid};
 pub use vol::write_vol;
 
 use crate::blobby::Blob;

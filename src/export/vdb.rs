@@ -1,28 +1,35 @@
-//! OpenVDB writer: one uncompressed float grid (`Tree_float_5_4_3`) per file.
+//! OpenVDB writer: uncompressed grids — the float `density` (`Tree_float_5_4_3`) and, beside it,
+//! vector grids such as the velocity `vel` (`Tree_vec3s_5_4_3`, OpenVDB's `Vec3SGrid`).
 //!
 //! No crate writes OpenVDB, so this is the format written out by hand, as OpenVDB 10 lays it
 //! out (file version 224, little-endian, strings as a `u32` length and the bytes):
 //!
 //! 1. Header: magic `0x56444220` (`i64`), file version 224, library version 10.0, "has grid
-//!    offsets" = 1, a 36-character UUID, no file metadata, one grid.
-//! 2. The grid's descriptor: name, type `Tree_float_5_4_3`, no instance parent, and the absolute
-//!    offsets of the grid, of its voxel data and of its end.
-//! 3. The grid: compression flags 0 (none); metadata `class` = `fog volume` and `name`; the
-//!    transform, a `UniformScaleTranslateMap` (translation, scale, voxel size, inverse scale,
-//!    inverse scale squared, inverse twice the scale — the order of OpenVDB's `Maps.h`).
+//!    offsets" = 1, a 36-character UUID, no file metadata, the grid count.
+//! 2. Per grid, its descriptor: name, type (`Tree_float_5_4_3` or `Tree_vec3s_5_4_3`), no
+//!    instance parent, and the absolute offsets of the grid, of its voxel data and of its end;
+//!    then the grid itself:
+//! 3. Compression flags 0 (none); metadata (`class`, e.g. `fog volume`, any further entries —
+//!    typed `string`, `double` or `bool`, each a `u32` byte size and the value — and `name`);
+//!    the transform, a `UniformScaleTranslateMap` (translation, scale, voxel size, inverse
+//!    scale, inverse scale squared, inverse twice the scale — the order of OpenVDB's `Maps.h`).
 //! 4. Topology: one buffer; the root (background 0, no tiles, its Internal-5 children in
 //!    ascending origin order); each internal node's child mask, value mask (empty), the byte 6
 //!    ("no mask compression, all values"), every slot's tile value (0) and its children in slot
 //!    order; each leaf's value mask.
-//! 5. Voxel data: per leaf in the same order, its value mask, the byte 6 and 512 `f32`.
+//! 5. Voxel data: per leaf in the same order, its value mask, the byte 6 and 512 values (`f32`,
+//!    or three `f32` each for a vector grid).
 //!
 //! The tree is Root → Internal-5 (32³ slots of 128-voxel Internal-4 nodes) → Internal-4 (16³
-//! slots of 8³ leaves) → leaf. Active voxels are those with a positive value; everything else is
-//! the background 0. The output is a pure function of the grid, its name and the UUID seed.
+//! slots of 8³ leaves) → leaf. A float grid's active voxels are those with a positive value; a
+//! vector grid carries its own masks (the velocity's are the density's, so a zero velocity
+//! stays active). Everything else is the background 0. The output is a pure function of the
+//! grids and the UUID seed.
 
 use std::path::Path;
 
 use super::grid::{DensityGrid, LEAF_VOXELS, Leaf};
+use super::velocity::VectorGrid;
 
 /// OpenVDB file format version written (OpenVDB 10's).
 pub const FILE_VERSION: u32 = 224;
@@ -30,6 +37,48 @@ pub const FILE_VERSION: u32 = 224;
 /// Log2 of the voxels spanned by an Internal-5 node (`4096 = 2^12`) and an Internal-4 node
 /// (`128 = 2^7`), and a leaf (`8 = 2^3`).
 const LOG2_SPAN: [u32; 3] = [12, 7, 3];
+
+/// A grid metadata value (OpenVDB's typed metadata: `string`, `double`, `bool`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum MetaValue {
+    /// `StringMetadata`.
+    String(String),
+    /// `DoubleMetadata`.
+    Double(f64),
+    /// `BoolMetadata`.
+    Bool(bool),
+}
+
+/// The values of one grid of a file.
+#[derive(Clone, Copy, Debug)]
+pub enum GridValues<'a> {
+    /// A float grid (`Tree_float_5_4_3`); active where the value is positive.
+    Float(&'a DensityGrid),
+    /// A vector grid (`Tree_vec3s_5_4_3`, OpenVDB's `Vec3SGrid`); active where its leaves say.
+    Vec3(&'a VectorGrid),
+}
+
+/// One grid of a VDB file: its name, values and metadata (`name` is added by the writer).
+#[derive(Clone, Debug)]
+pub struct VdbGrid<'a> {
+    /// Grid name, unique in the file.
+    pub name: &'a str,
+    /// The values and their lattice.
+    pub values: GridValues<'a>,
+    /// Metadata entries in file order, starting with `class` (e.g. `fog volume`).
+    pub metadata: Vec<(String, MetaValue)>,
+}
+
+impl<'a> VdbGrid<'a> {
+    /// A fog-volume float grid called `name`.
+    pub fn fog(name: &'a str, grid: &'a DensityGrid) -> VdbGrid<'a> {
+        VdbGrid {
+            name,
+            values: GridValues::Float(grid),
+            metadata: vec![("class".into(), MetaValue::String("fog volume".into()))],
+        }
+    }
+}
 
 /// Write `grid` as an OpenVDB file holding one fog-volume float grid called `name`, atomically.
 /// `uuid_seed` makes the file's UUID (the same seed gives the same bytes).
@@ -42,9 +91,21 @@ pub fn write_vdb(
     crate::atomic::write_bytes_atomically(path, &encode_vdb(grid, name, uuid_seed))
 }
 
-/// The OpenVDB file's bytes (see the module doc).
+/// Write `grids` as one OpenVDB file, atomically (see [`encode_vdb_grids`]).
+pub fn write_vdb_grids(path: &Path, grids: &[VdbGrid], uuid_seed: u64) -> std::io::Result<()> {
+    crate::atomic::write_bytes_atomically(path, &encode_vdb_grids(grids, uuid_seed))
+}
+
+/// The OpenVDB file's bytes for one fog-volume float grid (see the module doc).
 pub fn encode_vdb(grid: &DensityGrid, name: &str, uuid_seed: u64) -> Vec<u8> {
-    let mut out = Vec::with_capacity(1024 + grid.leaves.len() * (2 * 64 + 1 + 4 * LEAF_VOXELS));
+    encode_vdb_grids(&[VdbGrid::fog(name, grid)], uuid_seed)
+}
+
+/// The OpenVDB file's bytes for `grids`, in order (see the module doc; each grid is its
+/// descriptor followed by its data).
+pub fn encode_vdb_grids(grids: &[VdbGrid], uuid_seed: u64) -> Vec<u8> {
+    let leaves: usize = grids.iter().map(|g| g.leaf_count()).sum();
+    let mut out = Vec::with_capacity(1024 + leaves * (2 * 64 + 1 + 12 * LEAF_VOXELS));
     put_i64(&mut out, 0x5644_4220);
     put_u32(&mut out, FILE_VERSION);
     put_u32(&mut out, 10);
@@ -52,25 +113,115 @@ pub fn encode_vdb(grid: &DensityGrid, name: &str, uuid_seed: u64) -> Vec<u8> {
     out.push(1);
     out.extend_from_slice(uuid(uuid_seed).as_bytes());
     put_i32(&mut out, 0);
-    put_i32(&mut out, 1);
-    // Descriptor, with the three offsets patched once known.
-    put_str(&mut out, name);
-    put_str(&mut out, "Tree_float_5_4_3");
-    put_str(&mut out, "");
+    put_i32(&mut out, grids.len() as i32);
+    for grid in grids {
+        write_grid(&mut out, grid);
+    }
+    out
+}
+
+impl VdbGrid<'_> {
+    fn leaf_count(&self) -> usize {
+        match self.values {
+            GridValues::Float(g) => g.leaves.len(),
+            GridValues::Vec3(g) => g.leaves.len(),
+        }
+    }
+
+    /// `(voxel, translation)` of the grid's lattice.
+    fn lattice(&self) -> (f64, [f64; 3]) {
+        match self.values {
+            GridValues::Float(g) => (g.voxel, g.translation),
+            GridValues::Vec3(g) => (g.voxel, g.translation),
+        }
+    }
+
+    fn tree_type(&self) -> &'static str {
+        match self.values {
+            GridValues::Float(_) => "Tree_float_5_4_3",
+            GridValues::Vec3(_) => "Tree_vec3s_5_4_3",
+        }
+    }
+
+    /// Bytes of one value (the background and tile values are zeros of this size).
+    fn value_bytes(&self) -> usize {
+        match self.values {
+            GridValues::Float(_) => 4,
+            GridValues::Vec3(_) => 12,
+        }
+    }
+
+    fn origins(&self) -> Vec<[i32; 3]> {
+        match self.values {
+            GridValues::Float(g) => g.leaves.iter().map(|l| l.origin).collect(),
+            GridValues::Vec3(g) => g.leaves.iter().map(|l| l.origin).collect(),
+        }
+    }
+
+    fn mask(&self, leaf: usize) -> [u64; 8] {
+        match self.values {
+            GridValues::Float(g) => value_mask(&g.leaves[leaf]),
+            GridValues::Vec3(g) => g.leaves[leaf].mask,
+        }
+    }
+
+    fn put_values(&self, out: &mut Vec<u8>, leaf: usize) {
+        match self.values {
+            GridValues::Float(g) => g.leaves[leaf]
+                .values
+                .iter()
+                .for_each(|v| out.extend_from_slice(&v.to_le_bytes())),
+            GridValues::Vec3(g) => g.leaves[leaf]
+                .values
+                .iter()
+                .flatten()
+                .for_each(|v| out.extend_from_slice(&v.to_le_bytes())),
+        }
+    }
+}
+
+/// One grid: descriptor (name, type, no instance parent, offsets), then at grid start the
+/// compression flags, metadata, transform, topology and, at block start, the voxel data.
+fn write_grid(out: &mut Vec<u8>, grid: &VdbGrid) {
+    put_str(out, grid.name);
+    put_str(out, grid.tree_type());
+    put_str(out, "");
+    // The three offsets, patched once known.
     let offsets_at = out.len();
     out.extend_from_slice(&[0; 24]);
     let grid_start = out.len();
-    put_u32(&mut out, 0);
-    put_i32(&mut out, 2);
-    for (key, value) in [("class", "fog volume"), ("name", name)] {
-        put_str(&mut out, key);
-        put_str(&mut out, "string");
-        put_str(&mut out, value);
+    put_u32(out, 0);
+    let name = ("name".to_string(), MetaValue::String(grid.name.into()));
+    let metadata: Vec<&(String, MetaValue)> = grid
+        .metadata
+        .iter()
+        .filter(|(k, _)| k != "name")
+        .chain(std::iter::once(&name))
+        .collect();
+    put_i32(out, metadata.len() as i32);
+    for (key, value) in metadata {
+        put_str(out, key);
+        match value {
+            MetaValue::String(v) => {
+                put_str(out, "string");
+                put_str(out, v);
+            }
+            MetaValue::Double(v) => {
+                put_str(out, "double");
+                put_u32(out, 8);
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            MetaValue::Bool(v) => {
+                put_str(out, "bool");
+                put_u32(out, 1);
+                out.push(u8::from(*v));
+            }
+        }
     }
-    put_str(&mut out, "UniformScaleTranslateMap");
-    let h = grid.voxel;
+    put_str(out, "UniformScaleTranslateMap");
+    let (h, translation) = grid.lattice();
     let transform = [
-        grid.translation,
+        translation,
         [h; 3],
         [h; 3],
         [1.0 / h; 3],
@@ -80,50 +231,49 @@ pub fn encode_vdb(grid: &DensityGrid, name: &str, uuid_seed: u64) -> Vec<u8> {
     for v in transform.iter().flatten() {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    let tree = Tree::new(&grid.leaves);
-    tree.write_topology(&mut out);
+    let origins = grid.origins();
+    let tree = Tree::new(&origins);
+    tree.write_topology(out, grid.value_bytes(), |i| grid.mask(i));
     let block_start = out.len();
-    // Leaves in the tree's depth-first order (not `grid.leaves`' origin order).
+    // Leaves in the tree's depth-first order (not the grid's origin order).
     for leaf in tree.leaves() {
-        let mask = value_mask(leaf);
-        mask.iter()
+        grid.mask(leaf)
+            .iter()
             .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
         out.push(6);
-        leaf.values
-            .iter()
-            .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        grid.put_values(out, leaf);
     }
     let end = out.len();
     for (n, pos) in [grid_start, block_start, end].into_iter().enumerate() {
         let at = offsets_at + 8 * n;
         out[at..at + 8].copy_from_slice(&(pos as i64).to_le_bytes());
     }
-    out
 }
 
-/// An Internal-4 node: its slot in its parent and its leaves with their slots.
-type Mid<'a> = (usize, Vec<(usize, &'a Leaf)>);
+/// An Internal-4 node: its slot in its parent and its leaves (indices) with their slots.
+type Mid = (usize, Vec<(usize, usize)>);
 
 /// The leaves grouped into Internal-5 and Internal-4 nodes, all in OpenVDB's write order.
-struct Tree<'a> {
+struct Tree {
     /// Internal-5 nodes: origin and Internal-4 children.
-    tops: Vec<([i32; 3], Vec<Mid<'a>>)>,
+    tops: Vec<([i32; 3], Vec<Mid>)>,
 }
 
-impl<'a> Tree<'a> {
-    /// Group `leaves` (any order) by their ancestors, each level sorted as OpenVDB iterates it:
-    /// root children by origin, internal children by slot.
-    fn new(leaves: &'a [Leaf]) -> Tree<'a> {
-        let mut keyed: Vec<([i32; 3], usize, usize, &Leaf)> = leaves
+impl Tree {
+    /// Group the leaves at `origins` (any order) by their ancestors, each level sorted as
+    /// OpenVDB iterates it: root children by origin, internal children by slot.
+    fn new(origins: &[[i32; 3]]) -> Tree {
+        let mut keyed: Vec<([i32; 3], usize, usize, usize)> = origins
             .iter()
-            .map(|l| {
-                let top = align(l.origin, LOG2_SPAN[0]);
-                let mid = align(l.origin, LOG2_SPAN[1]);
+            .enumerate()
+            .map(|(i, &o)| {
+                let top = align(o, LOG2_SPAN[0]);
+                let mid = align(o, LOG2_SPAN[1]);
                 (
                     top,
                     slot(mid, top, LOG2_SPAN[1], 5),
-                    slot(l.origin, mid, LOG2_SPAN[2], 4),
-                    l,
+                    slot(o, mid, LOG2_SPAN[2], 4),
+                    i,
                 )
             })
             .collect();
@@ -142,27 +292,33 @@ impl<'a> Tree<'a> {
         Tree { tops }
     }
 
-    /// The leaves depth-first, in the order OpenVDB reads their voxel data.
-    fn leaves(&self) -> impl Iterator<Item = &'a Leaf> + '_ {
+    /// The leaves (indices) depth-first, in the order OpenVDB reads their voxel data.
+    fn leaves(&self) -> impl Iterator<Item = usize> + '_ {
         self.tops
             .iter()
             .flat_map(|t| t.1.iter())
             .flat_map(|m| m.1.iter().map(|l| l.1))
     }
 
-    /// The tree's topology section.
-    fn write_topology(&self, out: &mut Vec<u8>) {
+    /// The tree's topology section; values are `value_bytes` wide (zero background and
+    /// tiles), `mask(leaf)` is a leaf's value mask.
+    fn write_topology(
+        &self,
+        out: &mut Vec<u8>,
+        value_bytes: usize,
+        mask: impl Fn(usize) -> [u64; 8],
+    ) {
         put_i32(out, 1); // buffer count
-        put_f32(out, 0.0); // background
+        out.resize(out.len() + value_bytes, 0); // background
         put_u32(out, 0); // tiles
         put_u32(out, self.tops.len() as u32);
         for (origin, mids) in &self.tops {
             origin.iter().for_each(|&c| put_i32(out, c));
-            internal_node(out, 5, mids.iter().map(|m| m.0));
+            internal_node(out, 5, value_bytes, mids.iter().map(|m| m.0));
             for (_, leaves) in mids {
-                internal_node(out, 4, leaves.iter().map(|l| l.0));
-                for (_, leaf) in leaves {
-                    value_mask(leaf)
+                internal_node(out, 4, value_bytes, leaves.iter().map(|l| l.0));
+                for &(_, leaf) in leaves {
+                    mask(leaf)
                         .iter()
                         .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
                 }
@@ -172,8 +328,13 @@ impl<'a> Tree<'a> {
 }
 
 /// An internal node's own topology (masks and tile values, not its children's): `log2` slots
-/// per axis, children at `child_slots`.
-fn internal_node(out: &mut Vec<u8>, log2: u32, child_slots: impl Iterator<Item = usize>) {
+/// per axis, children at `child_slots`, tile values `value_bytes` wide.
+fn internal_node(
+    out: &mut Vec<u8>,
+    log2: u32,
+    value_bytes: usize,
+    child_slots: impl Iterator<Item = usize>,
+) {
     let slots = 1usize << (3 * log2);
     let mut child_mask = vec![0u64; slots / 64];
     for s in child_slots {
@@ -184,7 +345,7 @@ fn internal_node(out: &mut Vec<u8>, log2: u32, child_slots: impl Iterator<Item =
         .for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
     out.resize(out.len() + slots / 8, 0); // value mask: no active tiles
     out.push(6);
-    out.resize(out.len() + 4 * slots, 0); // tile values: all 0.0 (background)
+    out.resize(out.len() + value_bytes * slots, 0); // tile values: all 0 (background)
 }
 
 /// A leaf's value mask: bit `i` set where value `i` is positive.
@@ -231,9 +392,6 @@ fn put_u32(out: &mut Vec<u8>, v: u32) {
     out.extend_from_slice(&v.to_le_bytes());
 }
 fn put_i64(out: &mut Vec<u8>, v: i64) {
-    out.extend_from_slice(&v.to_le_bytes());
-}
-fn put_f32(out: &mut Vec<u8>, v: f32) {
     out.extend_from_slice(&v.to_le_bytes());
 }
 fn put_str(out: &mut Vec<u8>, s: &str) {

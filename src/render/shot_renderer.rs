@@ -74,10 +74,13 @@ impl ShotRenderer {
                 (l.grid, Reuse::LightGrid)
             }
             Some(l) => (
-                LightGrid::for_frame_reusing(settings, &medium, l.grid),
+                LightGrid::for_frame_reusing(settings, &lattice_medium(settings, &medium), l.grid),
                 Reuse::Buffers,
             ),
-            None => (LightGrid::for_frame(settings, &medium), Reuse::Buffers),
+            None => (
+                LightGrid::for_frame(settings, &lattice_medium(settings, &medium)),
+                Reuse::Buffers,
+            ),
         };
         let frame = render_medium(settings, &medium, &grid);
         let last = self.last.insert(Last {
@@ -88,4 +91,9 @@ impl ShotRenderer {
         });
         (&last.frame, reuse)
     }
+}
+
+/// The medium the light grid samples, as [`super::render_frame`] builds it.
+fn lattice_medium(settings: &RenderSettings, medium: &BlobMedium) -> BlobMedium {
+    medium.for_lattice(settings.quality.shadow_grid)
 }

@@ -2,8 +2,9 @@
 //! output settings; and rendering a shot to frame files with resume and frame ranges.
 //!
 //! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png/.vdb/.vol` (and optionally
-//! `<name>_0001.blobs.ron`), written atomically so that a frame whose files all exist is
-//! finished.
+//! `<name>_0001.blobs.ron`), numbered from `shot.start_frame` ([`frames`]), written atomically
+//! with the frame's manifest last, so that a frame whose files and manifest exist is finished,
+//! and up to date when the manifest's hash matches ([`provenance`]).
 //!
 //! Paths: the target (`Model("…")`, `Fit(mesh: "…")`) resolves against the scene file's folder,
 //! so a scene can sit beside its models; the output folder resolves against the current
@@ -12,15 +13,23 @@
 pub mod camera;
 pub mod chunk;
 pub mod file;
+pub mod files;
+pub mod frames;
+pub mod provenance;
+pub mod run;
 pub mod shot;
 pub mod stats;
 pub mod target;
 pub mod transform;
+pub mod usd;
 
 use std::path::{Path, PathBuf};
 
-pub use file::{AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, Shot, Target};
-pub use shot::{FrameReport, RenderOptions, ShotReport, render_shot};
+pub use file::{
+    AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, ShotSpec, Target,
+};
+pub use run::{FrameReport, ShotReport, render_shot};
+pub use shot::{Prepared, RenderOptions, Shot};
 pub use target::load_target;
 
 /// Everything that can go wrong reading a scene or rendering its shot.

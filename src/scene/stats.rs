@@ -6,7 +6,7 @@
 //! - 2D: the rendered alpha from the scene's camera, pixels with alpha > 0.05, 4-connected
 //!   components ([`crate::animate::stats::coverage`]).
 //!
-//! CSV columns: `frame` (1-based), `time_s`, `visible_blobs`, `volume_fraction` (visible cells
+//! CSV columns: `frame` (the frame number), `time_s`, `visible_blobs`, `volume_fraction` (visible cells
 //! over the last frame's), `components_3d`, `largest_3d` (share of the visible cells in the
 //! largest component), `coverage` (fraction of the image's pixels), `components_2d`,
 //! `largest_2d`. The 2D columns are empty for frames whose image was not rendered.
@@ -14,19 +14,18 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::shot::{Prepared, ShotSetup, frame_settings, prepare};
-use super::target::load_target;
+use super::shot::Shot;
 use super::{RenderOptions, Scene, SceneError};
 use crate::animate::stats::{
     ALPHA_LEVEL, Coverage, DEFAULT_CELL_FRACTION, Lattice, VisibleVolume, coverage, visible_volume,
 };
 use crate::blobby::Blob;
-use crate::render::{self, Frame};
+use crate::render::Frame;
 
 /// The statistics of one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameStats {
-    /// 1-based frame number.
+    /// Frame number.
     pub frame: u32,
     /// Time of the frame in seconds.
     pub time: f64,
@@ -47,31 +46,35 @@ pub struct StatsBasis {
     threshold: f64,
     final_voxels: usize,
     fps: f64,
+    /// Frame number of the shot's first frame.
+    first: u32,
 }
 
 impl StatsBasis {
-    /// The basis of `prep`'s shot: lattice from the target's box, final volume from the last
-    /// frame of the plan.
-    pub fn new(prep: &Prepared) -> StatsBasis {
+    /// The basis of `shot`: lattice from the target's box, final volume from the last frame of
+    /// the plan.
+    pub fn new(shot: &Shot) -> Result<StatsBasis, SceneError> {
+        let prep = shot.prepared()?;
         let lattice = Lattice::for_target(&prep.bounds, DEFAULT_CELL_FRACTION);
         let timeline = prep.plan.timeline();
         let last = prep.plan.frame(timeline.frames.saturating_sub(1));
         let threshold = prep.model.threshold;
         let final_voxels = visible_volume(&last, threshold, lattice).voxels;
-        StatsBasis {
+        Ok(StatsBasis {
             lattice,
             threshold,
             final_voxels,
             fps: timeline.fps,
-        }
+            first: shot.number(0),
+        })
     }
 
-    /// Statistics of 1-based `frame` with blobs `blobs` and, if rendered, its image.
+    /// Statistics of frame number `frame` with blobs `blobs` and, if rendered, its image.
     pub fn frame(&self, frame: u32, blobs: &[Blob], image: Option<&Frame>) -> FrameStats {
         let volume = visible_volume(blobs, self.threshold, self.lattice);
         FrameStats {
             frame,
-            time: (frame - 1) as f64 / self.fps,
+            time: (frame - self.first) as f64 / self.fps,
             visible_blobs: blobs.iter().filter(|b| b.is_live()).count(),
             volume,
             volume_fraction: volume.voxels as f64 / self.final_voxels.max(1) as f64,
@@ -89,35 +92,24 @@ pub fn shot_stats(
     opts: &RenderOptions,
     alpha_every: u32,
 ) -> Result<Vec<FrameStats>, SceneError> {
-    let setup = super::shot::shot_setup(scene, opts)?;
-    let (model, _) = load_target(scene, &setup.cache_dir)?;
-    let prep = prepare(scene, model)?;
-    let basis = StatsBasis::new(&prep);
-    let (first, last) = (*setup.frames.start(), *setup.frames.end());
-    Ok(setup
-        .frames
-        .clone()
-        .map(|frame| {
-            let k = frame - 1;
-            let blobs = prep.plan.frame(k as usize);
+    let shot = Shot::open(scene.clone(), opts)?;
+    let basis = StatsBasis::new(&shot)?;
+    let frames = shot.frames();
+    let (first, last) = (frames[0], frames[frames.len() - 1]);
+    frames
+        .iter()
+        .map(|&frame| {
+            let k = shot.index(frame);
+            let blobs = shot.blobs(k)?;
             let render = alpha_every > 0 && ((frame - first) % alpha_every == 0 || frame == last);
-            let image = render.then(|| render_in_memory(scene, &prep, &setup, k, opts, &blobs));
-            basis.frame(frame, &blobs, image.as_ref())
+            let image = if render {
+                Some(shot.render_frame(k)?)
+            } else {
+                None
+            };
+            Ok(basis.frame(frame, &blobs, image.as_ref()))
         })
-        .collect())
-}
-
-/// Render 0-based frame `k` without writing it.
-pub(crate) fn render_in_memory(
-    scene: &Scene,
-    prep: &Prepared,
-    setup: &ShotSetup,
-    k: u32,
-    opts: &RenderOptions,
-    blobs: &[Blob],
-) -> Frame {
-    let settings = frame_settings(scene, prep, setup, k, opts.preview);
-    render::render_frame(&settings, blobs)
+        .collect()
 }
 
 /// The CSV text of `stats` (header, then one line per frame).
@@ -163,6 +155,6 @@ pub fn write_csv(path: &Path, stats: &[FrameStats]) -> Result<(), SceneError> {
 }
 
 /// The stats file of a shot: `<dir>/<name>_stats.csv`.
-pub fn stats_path(scene: &Scene, dir: &Path) -> std::path::PathBuf {
-    dir.join(format!("{}_stats.csv", scene.name))
+pub fn stats_path(shot: &Shot) -> std::path::PathBuf {
+    shot.dir().join(format!("{}_stats.csv", shot.scene().name))
 }

@@ -32,6 +32,20 @@ pub enum Up {
 }
 
 impl Up {
+    /// Every axis, in the order of [`Up::NAMES`].
+    pub const ALL: [Up; 6] = [Up::X, Up::Y, Up::Z, Up::NegX, Up::NegY, Up::NegZ];
+    /// The command line's names of [`Up::ALL`] (`-x` may also be written `negx`).
+    pub const NAMES: [&'static str; 6] = ["x", "y", "z", "-x", "-y", "-z"];
+
+    /// The axis named `name` (any case): `x`, `y`, `z`, `-x`, `-y`, `-z` or `negx`, ….
+    pub fn from_name(name: &str) -> Option<Up> {
+        let n = name.trim().to_ascii_lowercase();
+        let n = n
+            .strip_prefix("neg")
+            .map_or(n.clone(), |rest| format!("-{rest}"));
+        Up::NAMES.iter().position(|&k| k == n).map(|i| Up::ALL[i])
+    }
+
     /// The model axis.
     pub fn axis(self) -> DVec3 {
         match self {
@@ -196,9 +210,13 @@ mod tests {
             let there = moved[0].value(t.apply_point(p));
             assert!((here - there).abs() < 1e-9, "{here} vs {there}");
         }
-        for up in [Up::X, Up::Y, Up::Z, Up::NegX, Up::NegY, Up::NegZ] {
+        for up in Up::ALL {
             let r = up.rotation() * up.axis();
             assert!((r - DVec3::Y).length() < 1e-12, "{up:?}");
         }
+        assert_eq!(Up::from_name("Z"), Some(Up::Z));
+        assert_eq!(Up::from_name("-y"), Some(Up::NegY));
+        assert_eq!(Up::from_name("NegX"), Some(Up::NegX));
+        assert_eq!(Up::from_name("w"), None);
     }
 }

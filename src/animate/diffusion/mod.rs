@@ -327,10 +327,15 @@ impl DiffusionPlan {
 
     /// The blobs of frame `k`; the target itself once the motion is over.
     pub fn frame(&self, k: usize) -> Vec<Blob> {
-        if self.timeline.progress(k) >= 1.0 {
+        self.at(self.timeline.time(k))
+    }
+
+    /// The blobs at `t` seconds (any time; see [`crate::animate::Plan::at`]).
+    pub fn at(&self, t: f64) -> Vec<Blob> {
+        if self.timeline.progress_at(t) >= 1.0 {
             return self.target.clone();
         }
-        self.frame_at(self.timeline.time(k))
+        self.frame_at(t)
     }
 
     /// The blobs at `t` seconds into the motion.

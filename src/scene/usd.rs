@@ -1,9 +1,10 @@
 //! The shot as a USD ASCII stage (`.usda`): the camera animated per frame, the sun as a
 //! `DistantLight`, the sky as a `DomeLight` colour, and the cloud as a `Volume` whose
-//! `OpenVDBAsset` field `density` points at the frame VDBs (time-sampled `filePath`).
+//! `OpenVDBAsset` fields `density` and `vel` (the velocity grid, so Karma and other Hydra
+//! renderers motion-blur it without set-up) point at the frame VDBs (time-sampled `filePath`).
 //!
-//! Conventions: time code `k` is frame `k` (1-based), `timeCodesPerSecond` = `framesPerSecond` =
-//! the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
+//! Conventions: the time code of a frame is its frame number (from `shot.start_frame`, 1 by
+//! default), `timeCodesPerSecond` = `framesPerSecond` = the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
 //! stage on import if they are not metres). Matrices are USD's row-vector `matrix4d` (the last
 //! row is the translation). The camera looks down its local −Z with +Y up, as nephele's does;
 //! its lens uses the schema's tenths-of-a-unit convention with a 24-unit vertical aperture:
@@ -16,10 +17,9 @@ use std::path::{Component, Path, PathBuf};
 
 use glam::DVec3;
 
+use super::{SceneError, Shot};
 use crate::render::output::CameraFrame;
 use crate::render::{Sky, Sun};
-use crate::scene::Scene;
-use crate::scene::shot::{Prepared, ShotSetup, frame_settings};
 
 /// Vertical aperture of the stage's camera (tenths of a unit, the schema's convention).
 pub const VERTICAL_APERTURE: f64 = 24.0;
@@ -29,7 +29,9 @@ pub const VERTICAL_APERTURE: f64 = 24.0;
 pub struct Stage {
     /// Frames per second.
     pub fps: f64,
-    /// The camera of frames `1..=cameras.len()`.
+    /// Frame number (and time code) of the first frame.
+    pub start_frame: u32,
+    /// The camera of frames `start_frame..start_frame + cameras.len()`.
     pub cameras: Vec<CameraFrame>,
     /// Near and far clipping distances.
     pub clipping: [f64; 2],
@@ -43,22 +45,23 @@ pub struct Stage {
     pub doc: String,
 }
 
-/// The stage of a scene's whole shot (full resolution), for a stage file in `stage_dir`: the
-/// cameras of every frame as rendered, the lights, and the frame VDBs of `setup.dir` (written by
-/// `nephele render --formats vdb`), relative to `stage_dir` where possible.
-pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: &Path) -> Stage {
-    let cameras = (0..setup.total)
-        .map(|k| {
-            let settings = frame_settings(scene, prep, setup, k, false);
-            CameraFrame::new(&settings.camera, setup.width, setup.height)
-        })
+/// The stage of `shot`'s whole shot (every frame, whatever its frame range), for a stage file
+/// in `stage_dir`: the cameras of every frame as rendered, the lights, and the frame VDBs of
+/// the shot's folder (written by `nephele render --formats vdb`), relative to `stage_dir`
+/// where possible.
+pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
+    let scene = shot.scene();
+    let (width, height) = shot.size();
+    let cameras = (0..shot.total())
+        .map(|k| Ok(CameraFrame::new(&shot.settings(k)?.camera, width, height)))
+        .collect::<Result<_, SceneError>>()?;
+    let length = shot.prepared()?.bounds.diagonal().max(1e-12);
+    let vdb_paths = (0..shot.total())
+        .map(|k| relative_to(&frame_vdb(shot, shot.number(k)), stage_dir))
         .collect();
-    let length = prep.bounds.diagonal().max(1e-12);
-    let vdb_paths = (1..=setup.total)
-        .map(|frame| relative_to(&frame_vdb(scene, &setup.dir, frame), stage_dir))
-        .collect();
-    Stage {
+    Ok(Stage {
         fps: scene.file.shot.fps,
+        start_frame: shot.number(0),
         cameras,
         clipping: [1e-3 * length, 1e3 * length],
         sun: scene.file.sun,
@@ -73,12 +76,13 @@ pub fn shot_stage(scene: &Scene, prep: &Prepared, setup: &ShotSetup, stage_dir: 
                 .map(|n| n.to_string_lossy())
                 .unwrap_or_default()
         ),
-    }
+    })
 }
 
-/// The VDB file of frame `frame` (1-based) in `dir`, as `nephele render --formats vdb` names it.
-pub fn frame_vdb(scene: &Scene, dir: &Path, frame: u32) -> PathBuf {
-    dir.join(format!("{}_{frame:04}.vdb", scene.name))
+/// The VDB file of frame number `frame`, as `nephele render --formats vdb` names it.
+pub fn frame_vdb(shot: &Shot, frame: u32) -> PathBuf {
+    shot.dir()
+        .join(format!("{}.vdb", super::files::frame_stem(shot, frame)))
 }
 
 /// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.
@@ -104,14 +108,15 @@ fn relative_to(path: &Path, base: &Path) -> String {
 
 /// The `.usda` text of `stage`.
 pub fn stage_text(stage: &Stage) -> String {
-    let n = stage.cameras.len().max(1);
+    let first = stage.start_frame as usize;
+    let last = first + stage.cameras.len().max(1) - 1;
     let mut s = String::new();
     let _ = writeln!(s, "#usda 1.0");
     let _ = writeln!(s, "(");
     let _ = writeln!(s, "    defaultPrim = \"shot\"");
     let _ = writeln!(s, "    doc = {}", quoted(&stage.doc));
-    let _ = writeln!(s, "    startTimeCode = 1");
-    let _ = writeln!(s, "    endTimeCode = {n}");
+    let _ = writeln!(s, "    startTimeCode = {first}");
+    let _ = writeln!(s, "    endTimeCode = {last}");
     let _ = writeln!(s, "    timeCodesPerSecond = {}", num(stage.fps));
     let _ = writeln!(s, "    framesPerSecond = {}", num(stage.fps));
     let _ = writeln!(s, "    upAxis = \"Y\"");
@@ -121,7 +126,7 @@ pub fn stage_text(stage: &Stage) -> String {
     camera(&mut s, stage);
     sun(&mut s, &stage.sun);
     sky(&mut s, &stage.sky, &stage.sun);
-    volume(&mut s, &stage.vdb_paths);
+    volume(&mut s, &stage.vdb_paths, first);
     let _ = writeln!(s, "}}");
     s
 }
@@ -155,7 +160,7 @@ fn camera(s: &mut String, stage: &Stage) {
     for (k, c) in stage.cameras.iter().enumerate() {
         // Camera to world: local +X right, +Y up, +Z backward (it looks down −Z).
         let m = matrix([c.right, c.up, -c.forward], c.eye);
-        let _ = writeln!(s, "            {}: {m},", k + 1);
+        let _ = writeln!(s, "            {}: {m},", stage.start_frame as usize + k);
     }
     let _ = writeln!(s, "        }}");
     let _ = writeln!(
@@ -240,17 +245,31 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
     let _ = writeln!(s, "    }}\n");
 }
 
-fn volume(s: &mut String, paths: &[String]) {
+/// The cloud: a `Volume` with two fields over the same frame VDBs — `density` (the fog volume)
+/// and `vel` (its velocity grid, world units per second, for motion blur).
+fn volume(s: &mut String, paths: &[String], first: usize) {
     let _ = writeln!(s, "    def Volume \"cloud\"\n    {{");
-    let _ = writeln!(s, "        rel field:density = </shot/cloud/density>\n");
-    let _ = writeln!(s, "        def OpenVDBAsset \"density\"\n        {{");
-    let _ = writeln!(s, "            token fieldName = \"density\"");
-    let _ = writeln!(s, "            asset filePath.timeSamples = {{");
-    for (k, p) in paths.iter().enumerate() {
-        let _ = writeln!(s, "                {}: @{}@,", k + 1, p.replace('@', "%40"));
+    let _ = writeln!(s, "        rel field:density = </shot/cloud/density>");
+    let _ = writeln!(s, "        rel field:vel = </shot/cloud/vel>\n");
+    for (name, data_type) in [("density", "float"), ("vel", "float3")] {
+        let _ = writeln!(s, "        def OpenVDBAsset \"{name}\"\n        {{");
+        let _ = writeln!(s, "            token fieldName = \"{name}\"");
+        let _ = writeln!(s, "            token fieldDataType = \"{data_type}\"");
+        if data_type == "float3" {
+            let _ = writeln!(s, "            token vectorDataRoleHint = \"Vector\"");
+        }
+        let _ = writeln!(s, "            asset filePath.timeSamples = {{");
+        for (k, p) in paths.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "                {}: @{}@,",
+                first + k,
+                p.replace('@', "%40")
+            );
+        }
+        let _ = writeln!(s, "            }}");
+        let _ = writeln!(s, "        }}");
     }
-    let _ = writeln!(s, "            }}");
-    let _ = writeln!(s, "        }}");
     let _ = writeln!(s, "    }}");
 }
 

@@ -1,0 +1,179 @@
+//! Rendering a shot to frame files, resumable: every file is written atomically and the
+//! frame's manifest last, so a frame whose files and manifest exist is finished; it is skipped
+//! when its hash matches ([`super::provenance`]) unless `force` is set, and rendered again,
+//! with the reason counted, when it does not.
+
+use std::time::Instant;
+
+use super::provenance::{self, FrameStatus};
+use super::shot::Shot;
+use super::stats::StatsBasis;
+use super::target::TargetOrigin;
+use super::{RenderOptions, Scene, SceneError, files};
+use crate::progress::Timings;
+
+/// What happened to one frame.
+#[derive(Clone, Debug)]
+pub struct FrameReport {
+    /// Frame number.
+    pub frame: u32,
+    /// The shot's last frame number.
+    pub of: u32,
+    /// True when the frame was up to date and skipped.
+    pub skipped: bool,
+    /// Seconds spent rendering and writing it (0 when skipped).
+    pub seconds: f64,
+}
+
+/// The outcome of a shot.
+#[derive(Clone, Debug)]
+pub struct ShotReport {
+    /// Folder the frames are in.
+    pub output_dir: std::path::PathBuf,
+    /// Frames rendered.
+    pub rendered: u32,
+    /// Frames skipped because they were done and up to date.
+    pub skipped: u32,
+    /// Frames on disk rendered again because they were out of date: `(reason, count)`, in the
+    /// order the reasons were first met.
+    pub out_of_date: Vec<(String, u32)>,
+    /// Where the target came from.
+    pub target: Option<TargetOrigin>,
+    /// Wall time per stage (target, plan, render, write).
+    pub timings: Timings,
+    /// The statistics file, when asked for.
+    pub stats: Option<std::path::PathBuf>,
+}
+
+/// Open `scene`'s shot with `opts` and [`Shot::run`] it.
+pub fn render_shot(
+    scene: &Scene,
+    opts: &RenderOptions,
+    on_frame: &mut dyn FnMut(&FrameReport),
+) -> Result<ShotReport, SceneError> {
+    Shot::open(scene.clone(), opts)?.run(on_frame)
+}
+
+impl Shot {
+    /// Render the shot: skip finished frames (unless `force`), render and write the rest,
+    /// calling `on_frame` after each frame.
+    pub fn run(&self, on_frame: &mut dyn FnMut(&FrameReport)) -> Result<ShotReport, SceneError> {
+        let opts = self.options();
+        let mut timings = Timings::default();
+        let mut report = ShotReport {
+            output_dir: self.dir().to_path_buf(),
+            rendered: 0,
+            skipped: 0,
+            out_of_date: Vec::new(),
+            target: None,
+            timings: Timings::default(),
+            stats: None,
+        };
+        let last = self.number(self.total() - 1);
+        // The hashes need every frame's inputs, so the target is loaded (from its cache when
+        // there is one) even when every frame turns out to be up to date.
+        let prep = timings.stage("target and plan", || self.prepared())?;
+        report.target = Some(prep.origin.clone());
+        let voxel = files::grid_voxel(self)?;
+        let basis = if opts.stats {
+            Some(StatsBasis::new(self)?)
+        } else {
+            None
+        };
+        let mut stats = Vec::new();
+        let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
+        // Frames in order: a hold reuses the last frame, a still cloud its light grid.
+        let mut renderer = crate::render::ShotRenderer::new();
+        for &frame in self.frames() {
+            let start = Instant::now();
+            let k = self.index(frame);
+            let blobs = self.blobs(k)?;
+            let settings = self.settings(k)?;
+            let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
+            let status = if opts.force {
+                FrameStatus::New
+            } else {
+                provenance::status(self, frame, hash)
+            };
+            let finished = status == FrameStatus::UpToDate;
+            // With statistics, finished frames are rendered again in memory (not written).
+            if finished && !opts.stats {
+                report.skipped += 1;
+                on_frame(&skipped(frame, last));
+                continue;
+            }
+            if let FrameStatus::OutOfDate(reason) = status {
+                match report.out_of_date.iter_mut().find(|(r, _)| *r == reason) {
+                    Some((_, n)) => *n += 1,
+                    None => report.out_of_date.push((reason, 1)),
+                }
+            }
+            let image = renderer.render(&settings, &blobs);
+            let rendered = Instant::now();
+            if !finished {
+                let out = files::FrameOutput {
+                    image,
+                    settings: &settings,
+                    blobs: &blobs,
+                    voxel,
+                    hash,
+                };
+                files::write_frame(self, frame, &out)?;
+            }
+            let written = Instant::now();
+            if let Some(basis) = &basis {
+                stats.push(basis.frame(frame, &blobs, Some(image)));
+            }
+            render_s += (rendered - start).as_secs_f64();
+            write_s += (written - rendered).as_secs_f64();
+            stats_s += written.elapsed().as_secs_f64();
+            if finished {
+                report.skipped += 1;
+            } else {
+                report.rendered += 1;
+            }
+            on_frame(&FrameReport {
+                frame,
+                of: last,
+                skipped: finished,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+        }
+        timings.stages.push(("render".into(), render_s));
+        timings.stages.push(("write".into(), write_s));
+        if basis.is_some() {
+            timings.stages.push(("stats".into(), stats_s));
+            let path = super::stats::stats_path(self);
+            super::stats::write_csv(&path, &stats)?;
+            report.stats = Some(path);
+        }
+        report.timings = timings;
+        Ok(report)
+    }
+}
+
+impl Shot {
+    /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
+    /// with the reason (the run's rule, for `prepare` and the farm).
+    pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
+        let voxel = files::grid_voxel(self)?;
+        self.frames()
+            .iter()
+            .map(|&frame| {
+                let k = self.index(frame);
+                let hash =
+                    provenance::frame_hash(self, k, &self.settings(k)?, &self.blobs(k)?, voxel);
+                Ok((frame, provenance::status(self, frame, hash)))
+            })
+            .collect()
+    }
+}
+
+fn skipped(frame: u32, of: u32) -> FrameReport {
+    FrameReport {
+        frame,
+        of,
+        skipped: true,
+        seconds: 0.0,
+    }
+}
