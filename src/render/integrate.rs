@@ -47,10 +47,77 @@ const MAX_STEPS: u32 = 1_000_000;
 
 /// What one pixel's march produced.
 #[derive(Clone, Copy, Debug)]
-struct PixelResult {
-    rgb: Vec3A,
-    transmittance: f32,
-    depth: f32,
+pub(super) struct PixelResult {
+    pub(super) rgb: Vec3A,
+    pub(super) transmittance: f32,
+    pub(super) depth: f32,
+}
+
+/// The running mean of a pixel's rays (coverage-weighted depth).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PixelSum {
+    acc: PixelResult,
+    depth_w: f32,
+}
+
+impl PixelSum {
+    pub(super) fn new() -> PixelSum {
+        PixelSum {
+            acc: PixelResult {
+                rgb: Vec3A::ZERO,
+                transmittance: 0.0,
+                depth: 0.0,
+            },
+            depth_w: 0.0,
+        }
+    }
+
+    pub(super) fn add(&mut self, r: &PixelResult) {
+        self.acc.rgb += r.rgb;
+        self.acc.transmittance += r.transmittance;
+        if r.depth.is_finite() {
+            let c = 1.0 - r.transmittance;
+            self.acc.depth += r.depth * c;
+            self.depth_w += c;
+        }
+    }
+
+    /// The mean of `n` rays added.
+    pub(super) fn mean(self, n: u32) -> PixelResult {
+        let mut acc = self.acc;
+        let inv = 1.0 / n as f32;
+        acc.rgb *= inv;
+        acc.transmittance *= inv;
+        acc.depth = if self.depth_w > 0.0 {
+            acc.depth / self.depth_w
+        } else {
+            f32::INFINITY
+        };
+        acc
+    }
+}
+
+/// Ray `k` of pixel `(x, y)` with `samples` rays on a `side × side` stratified grid (the pixel
+/// centre when `samples == 1`) and its march jitter, drawn from the pixel's generator in order
+/// (`k = 0, 1, …`).
+#[inline]
+pub(super) fn pixel_sample(
+    cam: &CameraRays,
+    (x, y): (u32, u32),
+    k: u32,
+    (samples, side): (u32, u32),
+    rng: &mut impl rand::Rng,
+) -> (Ray, f32) {
+    if samples == 1 {
+        return (cam.pixel_ray(x, y), rng.random());
+    }
+    let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
+    let (u, v, jitter): (f32, f32, f32) = (rng.random(), rng.random(), rng.random());
+    let ray = cam.ray(
+        x as f32 + (cx + u) / side as f32,
+        y as f32 + (cy + v) / side as f32,
+    );
+    (ray, jitter)
 }
 
 /// Render `medium` as seen by `settings.camera`, lit through `lights` (usually the light grid
@@ -108,48 +175,30 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
                             )
                         };
                         if samples == 1 {
-                            let ray = cam.pixel_ray(x, y);
-                            out.push(trace(&ray, rng.random()));
+                            let (ray, jitter) =
+                                pixel_sample(&cam, (x, y), 0, (samples, side), &mut rng);
+                            out.push(trace(&ray, jitter));
                             continue;
                         }
-                        let mut acc = PixelResult {
-                            rgb: Vec3A::ZERO,
-                            transmittance: 0.0,
-                            depth: 0.0,
-                        };
-                        let mut depth_w = 0.0f32;
+                        let mut sum = PixelSum::new();
                         for k in 0..samples {
-                            let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
-                            let (u, v, jitter): (f32, f32, f32) =
-                                (rng.random(), rng.random(), rng.random());
-                            let ray = cam.ray(
-                                x as f32 + (cx + u) / side as f32,
-                                y as f32 + (cy + v) / side as f32,
-                            );
-                            let r = trace(&ray, jitter);
-                            acc.rgb += r.rgb;
-                            acc.transmittance += r.transmittance;
-                            if r.depth.is_finite() {
-                                let c = 1.0 - r.transmittance;
-                                acc.depth += r.depth * c;
-                                depth_w += c;
-                            }
+                            let (ray, jitter) =
+                                pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
+                            sum.add(&trace(&ray, jitter));
                         }
-                        let inv = 1.0 / samples as f32;
-                        acc.rgb *= inv;
-                        acc.transmittance *= inv;
-                        acc.depth = if depth_w > 0.0 {
-                            acc.depth / depth_w
-                        } else {
-                            f32::INFINITY
-                        };
-                        out.push(acc);
+                        out.push(sum.mean(samples));
                     }
                 }
                 out
             },
         )
         .collect();
+    assemble(w, h, &tiles)
+}
+
+/// The frame from its tiles' pixels (each tile's in row order, tiles in row order).
+pub(super) fn assemble(w: u32, h: u32, tiles: &[Vec<PixelResult>]) -> Frame {
+    let tx = w.div_ceil(TILE);
     let n = (w * h) as usize;
     let mut frame = Frame {
         width: w,
@@ -183,7 +232,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
 /// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
 /// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
 #[inline]
-fn march<M: Medium, L: Lights, const SHADE: bool>(
+pub(super) fn march<M: Medium, L: Lights, const SHADE: bool>(
     medium: &M,
     lights: &L,
     shading: &Shading,

@@ -58,6 +58,13 @@ impl LightGrid {
         Some(LightGrid::from_extinction(shape, &sigma, sun_dir))
     }
 
+    /// [`LightGrid::build`] on a given node grid `shape` (e.g. one lattice shared by the time
+    /// samples of a frame, so that what holds still is lit alike in each).
+    pub fn build_on<M: Medium>(medium: &M, shape: GridShape, sun_dir: Vec3A) -> LightGrid {
+        let sigma = sample_nodes(medium, &shape);
+        LightGrid::from_extinction(shape, &sigma, sun_dir)
+    }
+
     /// Sweep the depths from `sigma` (extinction per node, `shape.len()` values) for sunlight
     /// travelling along `sun_dir` (unit) and the sky cells of [`directions`]; the sweeps run in
     /// parallel.

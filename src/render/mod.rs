@@ -36,6 +36,7 @@ pub mod light_grid;
 pub mod lights;
 pub mod medium;
 pub mod memory;
+pub mod motion_blur;
 pub mod noise;
 pub mod output;
 pub mod phase;
@@ -51,6 +52,7 @@ pub use integrate::{render_medium, render_medium_unshaded};
 pub use light_grid::LightGrid;
 pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
 pub use medium::{Homogeneous, Medium, Shape};
+pub use motion_blur::{BlurReport, Shutter, TimeSample, render_frame_blurred};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };

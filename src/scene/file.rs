@@ -188,6 +188,9 @@ pub struct ShotSpec {
     pub fps: f64,
     /// Length in seconds; the shot has `max(1, round(seconds · fps))` frames.
     pub seconds: f64,
+    /// Open shutter as a fraction of a frame, centred on the frame's time (`0` = no motion
+    /// blur, the default; `0.5` = a 180° film shutter; at most 1).
+    pub shutter: f64,
 }
 
 impl Default for ShotSpec {
@@ -197,6 +200,7 @@ impl Default for ShotSpec {
             height: 360,
             fps: 24.0,
             seconds: 4.0,
+            shutter: 0.0,
         }
     }
 }
@@ -309,6 +313,15 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         if !(v.is_finite() && v > 0.0) {
             return Err(bad(name, format!("must be a positive number, got {v}")));
         }
+    }
+    if !(s.shot.shutter.is_finite() && (0.0..=1.0).contains(&s.shot.shutter)) {
+        return Err(bad(
+            "shot.shutter",
+            format!(
+                "must be a fraction of a frame in [0, 1], got {}",
+                s.shot.shutter
+            ),
+        ));
     }
     let n = s.shot.frame_count();
     if let Some((a, b)) = s.frames {

@@ -97,7 +97,7 @@ impl Shot {
             let k = self.index(frame);
             let blobs = self.blobs(k)?;
             let settings = self.settings(k)?;
-            let image = crate::render::render_frame(&settings, &blobs);
+            let image = self.image(k, &settings, &blobs)?;
             let rendered = Instant::now();
             let write = !finished;
             if write {

@@ -213,7 +213,52 @@ impl Shot {
 
     /// Render 0-based frame `k` in memory.
     pub fn render_frame(&self, k: u32) -> Result<Frame, SceneError> {
-        Ok(render::render_frame(&self.settings(k)?, &self.blobs(k)?))
+        self.image(k, &self.settings(k)?, &self.blobs(k)?)
+    }
+
+    /// The open shutter of 0-based frame `k` with `time_samples` strata (`shot.shutter` of a
+    /// frame, centred on it), each with the blobs at its time and their centres' velocities
+    /// from the plan; `None` when the shutter is closed or nothing moves while it is open.
+    pub fn shutter(
+        &self,
+        k: u32,
+        time_samples: u32,
+    ) -> Result<Option<render::Shutter>, SceneError> {
+        let spec = &self.scene.file.shot;
+        if spec.shutter <= 0.0 {
+            return Ok(None);
+        }
+        let plan = &self.prepared()?.plan;
+        let t = plan.timeline().time(k as usize);
+        let (centres, stratum) = render::motion_blur::strata(spec.shutter, time_samples, spec.fps);
+        let samples = centres
+            .into_iter()
+            .map(|offset| {
+                let field = crate::animate::VelocityField::of_plan(plan, t + offset);
+                render::TimeSample {
+                    offset,
+                    blobs: plan.at(t + offset),
+                    velocity: field.motions().iter().map(|m| m.velocity).collect(),
+                }
+            })
+            .collect();
+        let shutter = render::Shutter { samples, stratum };
+        Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
+    }
+
+    /// Render 0-based frame `k` from its `settings` and `blobs`: through the open shutter when
+    /// the cloud moves ([`render::render_frame_blurred`]), else the frame as it stands (so a
+    /// closed shutter, or a cloud holding still, gives the same bits).
+    pub fn image(
+        &self,
+        k: u32,
+        settings: &RenderSettings,
+        blobs: &[Blob],
+    ) -> Result<Frame, SceneError> {
+        Ok(match self.shutter(k, settings.quality.time_samples)? {
+            Some(shutter) => render::render_frame_blurred(settings, blobs, &shutter).0,
+            None => render::render_frame(settings, blobs),
+        })
     }
 }
 
