@@ -147,7 +147,11 @@ fn write_inputs(
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
         let m = BlobMedium::new(&s, &blobs);
-        let f = render_medium(&s, &m, &LightGrid::for_frame(&s, &m));
+        let f = render_medium(
+            &s,
+            &m,
+            &LightGrid::for_frame(&s, &m.for_lattice(s.quality.shadow_grid)),
+        );
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"

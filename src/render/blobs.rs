@@ -12,14 +12,30 @@ use rand::RngExt;
 use super::camera::{Frustum, Ray, ray_ellipsoid};
 use super::density::{DensityParams, Hit, density};
 use super::medium::Medium;
-use super::noise::Octaves;
+use super::noise::Billows;
 use super::settings::RenderSettings;
 use crate::blobby::{Blob, THRESHOLD};
 use crate::rng::{Stream, item_rng};
 
-/// Erosion depth cap as a fraction of a blob's smallest semi-axis, so erosion cannot cut a thin
-/// blob (a leg, a neck) in two.
-pub const EROSION_CAP: f32 = 0.1;
+/// Finest billow wavelength in pixels of the frame (at the camera's look-at distance): finer
+/// octaves would only alias at one sample per pixel.
+pub const FINEST_BILLOW_PIXELS: f32 = 3.0;
+
+/// Smallest `A` the renderer gives a blob: the shell between a blob's iso-surface and the end
+/// of its support must hold the billows' tops (at the fitted minimum, 0.05, it is 2 % of the
+/// radius, and the billows flattened against the support into a thin glassy dome).
+pub const MIN_RENDER_A: f64 = 0.6;
+
+/// `(A', B')` with `A' ≥` [`MIN_RENDER_A`] and the blob's own iso-surface unchanged:
+/// `(1 + A')(1 − 1/B') = (1 + A)(1 − 1/B)` (for `t = 1`). A blob that cannot reach the iso-level
+/// alone (`B ≤ 1`) is kept as it is.
+pub fn roomy_support(a: f64, b: f64) -> (f64, f64) {
+    if a >= MIN_RENDER_A || b <= 1.0 {
+        return (a, b);
+    }
+    let iso = (1.0 + a) * (1.0 - 1.0 / b);
+    (MIN_RENDER_A, 1.0 / (1.0 - iso / (1.0 + MIN_RENDER_A)))
+}
 
 /// Per-thread scratch of [`BlobMedium`].
 #[derive(Debug, Default)]
@@ -41,8 +57,10 @@ pub struct BlobMedium {
     noise_from_world: Vec<Mat3A>,
     noise_offset: Vec<Vec3A>,
     b2: Vec<f32>,
-    /// Erosion depth capped at [`EROSION_CAP`] of the smallest semi-axis.
-    depth: Vec<f32>,
+    /// Feature size: the median semi-axis.
+    feature: Vec<f32>,
+    /// Half the smallest support semi-axis.
+    half_min_support: Vec<f32>,
     /// Bounding-ball radius of the support.
     radius: Vec<f32>,
     lo: Vec<Vec3A>,
@@ -90,22 +108,30 @@ impl BlobMedium {
     ) -> BlobMedium {
         let length = settings.length_scale.max(1e-12);
         let noise = settings.cloud.noise;
-        let freq = noise.frequency / length;
+        // Octave 0's wavelength; the noise frames below are in its units.
+        let largest = length / noise.frequency.max(1e-6);
+        let freq = 1.0 / largest;
         let mut m = BlobMedium {
             center: Vec::new(),
             unit_from_world: Vec::new(),
             noise_from_world: Vec::new(),
             noise_offset: Vec::new(),
             b2: Vec::new(),
-            depth: Vec::new(),
+            feature: Vec::new(),
+            half_min_support: Vec::new(),
             radius: Vec::new(),
             lo: Vec::new(),
             hi: Vec::new(),
             params: DensityParams {
                 sigma: settings.cloud.density.max(0.0) / length,
                 edge: settings.cloud.edge.max(0.0) * length,
-                depth: noise.amplitude.max(0.0) * length,
-                octaves: Octaves::new(noise.octaves, noise.evolve * settings.time),
+                billows: Billows::new(
+                    noise.octaves,
+                    largest,
+                    FINEST_BILLOW_PIXELS * settings.pixel_footprint(),
+                    noise.amplitude,
+                    noise.evolve * settings.time,
+                ),
                 inv_threshold: (1.0 / THRESHOLD) as f32,
             },
             step: 0.0,
@@ -122,7 +148,8 @@ impl BlobMedium {
             if !finite || !blob.is_live() || blob.a <= 0.0 {
                 continue;
             }
-            let support = (blob.semi_axes * (1.0 + blob.a).sqrt()).as_vec3();
+            let (a, b) = roomy_support(blob.a, blob.b);
+            let support = (blob.semi_axes * (1.0 + a).sqrt()).as_vec3();
             let world_from_local = Mat3A::from_quat(blob.rotation.as_quat().normalize());
             let local_from_world = world_from_local.transpose();
             let center = Vec3A::from(blob.center.as_vec3());
@@ -157,13 +184,11 @@ impl BlobMedium {
                 .push(Mat3A::from_diagonal(support.recip()) * local_from_world);
             m.noise_from_world.push(local_from_world * freq);
             m.noise_offset.push(offset);
-            m.b2.push((blob.b * blob.b) as f32);
+            m.b2.push((b * b) as f32);
             let mean_radius = (support.x * support.y * support.z).cbrt();
-            m.depth.push(
-                m.params
-                    .depth
-                    .min(EROSION_CAP * blob.semi_axes.min_element() as f32),
-            );
+            let s = blob.semi_axes.as_vec3();
+            m.feature.push(s.x.max(s.y).min(s.z).max(s.x.min(s.y)));
+            m.half_min_support.push(0.5 * support.min_element());
             m.radius.push(support.max_element());
             m.lo.push(center - half);
             m.hi.push(center + half);
@@ -240,7 +265,8 @@ impl BlobMedium {
                     t1,
                     b2: self.b2[i],
                     a_t: m.transpose(),
-                    depth: self.depth[i],
+                    feature: self.feature[i],
+                    half_min_support: self.half_min_support[i],
                     o,
                     d,
                     no: n * rel + self.noise_offset[i],
@@ -261,6 +287,18 @@ impl BlobMedium {
     #[inline]
     fn density(&self, hits: &[Hit], t: f32) -> f32 {
         density(&self.params, hits, t).0
+    }
+
+    /// The same medium without the billows finer than two cells of a lattice of `res` cells
+    /// on the longest side of its bounds: for the light grid, where they would only alias (the
+    /// shadows they cast are below the grid's resolution anyway), at a fraction of the cost.
+    pub fn for_lattice(&self, res: u32) -> BlobMedium {
+        let mut m = self.clone();
+        if let Some((lo, hi)) = self.bounds() {
+            let cell = (hi - lo).max_element() / res.max(1) as f32;
+            m.params.billows = self.params.billows.coarsened(2.0 * cell);
+        }
+        m
     }
 }
 

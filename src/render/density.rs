@@ -1,38 +1,42 @@
 //! The cloud's density model: the extinction a ray sample sees from the blobs it crosses.
 //!
-//! The blob field gives the large shape; its edge is eroded by billowy noise whose scale and
-//! depth are in world units (fractions of the target diagonal `L`), so a small or growing blob
-//! gets the same detail as a large one (after Schneider's Nubis clouds: a low-frequency base
-//! shape eroded at its edge by billows at a few scales).
+//! The blob field gives the large shape; its surface is displaced along its normal by
+//! cumulus billows ([`super::noise::Billows`]), pushed out on their tops and cut in at their
+//! creases — pyroclastic displacement after Wrenninge (*Production Volume Rendering*), with
+//! octaves that follow the local feature size as Bouthors & Neyret's puff hierarchies do.
 //!
 //! With `G(x) = Σ f_i(x)`, iso-level `t` and `g = G/t`:
 //!
 //! ```text
-//! d(x)   = (g − 1) / |∇g(x)|                   depth below the iso-surface (world, first order)
-//! σ_t(x) = σ · ramp((d − E·e(x)) / W)          σ = density / L, W = edge·L, E = amplitude·L
-//! e(x)   = Σ_i w_i erosion(N_i x + o_i) / Σ_i w_i,   w_i = max(f_i − ½ max_j f_j, 0)   ∈ [0, 1]
+//! d(x)   = 2(g − √g) / |∇g(x)|                signed depth below the iso-surface (world, first order in √g)
+//! σ_t(x) = σ · ramp((d + D(x)) / W)            σ = density / L, W = edge·L
+//! D(x)   = Σ_i w_i D_F(N_i x + o_i) / √(Σ_i w_i²),  w_i = max(f_i − ½ max_j f_j, 0)
+//! F(x)   = Σ_i w_i F_i / Σ_i w_i               local feature size, F_i = blob i's median semi-axis
 //! ```
+//!
+//! `D_F` is the billow displacement for feature size `F` ([`super::noise::Billows`]): octaves
+//! from a fifth of the target down to the frame's finest, each `amplitude × wavelength` deep and
+//! present only where `F` exceeds its wavelength, so a young blob, a leg and the body each get
+//! billows of their own size, and a thin part is never cut deeper than a fraction of its
+//! radius (it keeps its width).
 //!
 //! `∇g` is the exact gradient of the summed field (`∇f_i = −4B²(1 − |q|²)·A_iᵀq` at blob `i`'s
 //! unit-support point `q = A_i(x − c_i)`), so `d` is a distance in world units whatever the
-//! blobs' shapes and overlaps, and the density ramp is `W` wide as asked (a depth from one blob's
-//! mean slope was 3–5× too deep on fitted models: the ramp was a sub-voxel step that aliased in
-//! frames and in the exported grids). `E` is capped per blob at
-//! [`super::blobs::EROSION_CAP`] of its smallest semi-axis (blended like `e`), so erosion cannot
-//! cut a thin blob (a leg, a neck) in two. `erosion` ([`super::noise::erosion`]) is 0 on the tops of the
-//! billows and 1 in the creases between them: the iso-surface is carved inward by up to `E`,
-//! never pushed outward, so density exists only where the model's own surface is — a blob
-//! whose field stays below the iso-level is never lifted into view.
+//! blobs' shapes and overlaps, and the density ramp is `W` wide as asked. Outside the
+//! iso-surface (`0 < g < 1`) `d` is negative, and a billow top lifts density there; beyond the
+//! supports the field is 0 and so is the density (the billows fit in the shell between the
+//! iso-surface and the support, which the fitted `A` makes a good part of each semi-axis).
 //!
-//! `N_i = (frequency / L)·R_iᵀ(x − c_i)` is blob `i`'s local frame scaled to noise units
-//! (world scale, anchored to the blob: the texture moves and turns with it) and `o_i` a seeded
-//! offset drawn for the blob's index. The weights are continuous in `x` and keep only the
-//! dominant blobs, so a sample evaluates one to three noise stacks, and only in the band
-//! `0 < d < E + W`: deeper inside the density is `σ` and outside it is 0.
+//! `N_i = R_iᵀ(x − c_i)/λ_0` is blob `i`'s local frame scaled to noise units (world scale,
+//! anchored to the blob: the texture moves and turns with it, and does not stretch as the blob
+//! grows) and `o_i` a seeded offset drawn for the blob's index. The weights are continuous in
+//! `x` and keep only the dominant blobs, so a sample evaluates one to three billow stacks, and
+//! only in the band `−D⁺ < d < D⁻ + W` that the bounds of `D` leave undecided: deeper inside the
+//! density is `σ`, further out 0.
 
 use glam::Vec3A;
 
-use super::noise::{Octaves, erosion};
+use super::noise::{Billows, CREASE};
 
 /// Most blobs whose weights enter the noise blend at one sample; the strongest are kept (the
 /// field still sums all).
@@ -44,9 +48,11 @@ pub(super) struct Hit {
     pub(super) t0: f32,
     pub(super) t1: f32,
     pub(super) b2: f32,
-    /// Erosion depth `E_i`: `E`, capped at [`super::blobs::EROSION_CAP`] of the blob's smallest
-    /// semi-axis.
-    pub(super) depth: f32,
+    /// Feature size `F_i` (world units): the blob's median semi-axis.
+    pub(super) feature: f32,
+    /// Half the smallest semi-axis of the support: `½(1 − |q|²)·r` under-estimates the world
+    /// distance from unit-support point `q` to the support's boundary.
+    pub(super) half_min_support: f32,
     /// Transpose of the world → unit-support map: the field's world gradient is
     /// `−4B²(1 − |q|²)·Aᵀq` at unit-support point `q`.
     pub(super) a_t: glam::Mat3A,
@@ -58,6 +64,11 @@ pub(super) struct Hit {
     pub(super) nd: Vec3A,
 }
 
+/// Deepest a crease may cut, as a fraction of the local feature size `F` (softly: a crease of
+/// depth `c` cuts `c·m/(c + m)`, `m = MAX_CUT·F`), so legs, necks and the knot's tube keep
+/// their width while the body's billows cut in freely.
+pub(super) const MAX_CUT: f32 = 0.35;
+
 /// Density parameters, already in world units.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct DensityParams {
@@ -65,30 +76,49 @@ pub(super) struct DensityParams {
     pub(super) sigma: f32,
     /// Soft edge width `W` (world units).
     pub(super) edge: f32,
-    /// Erosion depth `E` (world units).
-    pub(super) depth: f32,
-    /// Noise octaves and their evolution (phase in noise units; 0 = frozen).
-    pub(super) octaves: Octaves,
+    /// The billows displacing the surface.
+    pub(super) billows: Billows,
     pub(super) inv_threshold: f32,
 }
 
 impl DensityParams {
-    /// `σ_t` at depth `d` below the iso-surface; `erosion()` (in `[0, 1]`) is called only when
-    /// it can change the result.
+    /// `σ_t` at signed depth `d` below the iso-surface of a part of feature size `feature`;
+    /// `displacement(depths, n)` (world units, in the bounds [`Billows::total_depth`] gives) is
+    /// called only when it can change the result. Returns `(σ_t, may_hold_density)`: the flag
+    /// is false only where no billow can reach (so a coarse march may skip on).
     #[inline]
-    fn extinction(&self, d: f32, depth: f32, erosion: impl FnOnce() -> f32) -> f32 {
-        if d <= 0.0 {
-            return 0.0;
+    ///
+    /// `reach` is how far the supports extend from this point (world units): outward pushes are
+    /// softly limited to it, `D·r/(D + r)`, so a billow top rounds off before the support ends
+    /// instead of being cut flat by it (a blob with a small `A` has a thin shell).
+    fn extinction(
+        &self,
+        d: f32,
+        feature: f32,
+        reach: f32,
+        displacement: impl FnOnce(&[f32; super::noise::MAX_OCTAVES], usize) -> f32,
+    ) -> (f32, bool) {
+        let (depths, n) = self.billows.depths(feature);
+        let total: f32 = depths[..n].iter().sum();
+        if d + ((1.0 - CREASE) * total).min(reach) <= 0.0 {
+            return (0.0, false);
         }
-        if d >= depth + self.edge {
-            return self.sigma;
+        if d - CREASE * total >= self.edge {
+            return (self.sigma, true);
         }
-        let v = if depth > 0.0 {
-            d - depth * erosion()
+        let v = if n > 0 {
+            let push = displacement(&depths, n);
+            d + if push > 0.0 {
+                push * reach / (push + reach).max(1e-30)
+            } else {
+                // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
+                let cut = MAX_CUT * feature;
+                push * cut / (cut - push).max(1e-30)
+            }
         } else {
             d
         };
-        self.sigma * ramp(v, self.edge)
+        (self.sigma * ramp(v, self.edge), true)
     }
 }
 
@@ -117,6 +147,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     let mut n = 0;
     let mut fmax = 0.0f32;
     let mut grad = Vec3A::ZERO;
+    let mut reach = 0.0f32;
     for (k, h) in hits.iter().enumerate() {
         if h.t0 > t {
             break;
@@ -132,6 +163,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             grad += h.a_t * q * (h.b2 * w);
             g += f;
             fmax = fmax.max(f);
+            reach = reach.max(w * h.half_min_support);
             if n < MAX_ACTIVE {
                 act[n] = (f, k as u32);
                 n += 1;
@@ -148,31 +180,38 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
         }
     }
     let g = g * p.inv_threshold;
-    if g <= 1.0 || !g.is_finite() {
+    if !(g > 0.0 && g.is_finite()) {
         return (0.0, false);
     }
-    let (mut esum, mut wsum) = (0.0, 0.0);
+    let (mut fsum, mut wsum) = (0.0, 0.0);
     for &(f, k) in &act[..n] {
         let w = f - 0.5 * fmax;
         if w > 0.0 {
-            esum += w * hits[k as usize].depth;
+            fsum += w * hits[k as usize].feature;
             wsum += w;
         }
     }
-    // Depth below the iso-surface to first order: (g − 1) / |∇g| (`grad` is ∇G / −4).
-    let d = (g - 1.0) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
-    let sigma = p.extinction(d, esum / wsum, || {
-        let mut sum = 0.0;
+    // Signed depth below the iso-surface: the first-order distance of `√g`'s level 1,
+    // `(√g − 1)/|∇√g| = 2(g − √g)/|∇g|` (`grad` is ∇G / −4). `√g` of one blob is linear in
+    // `1 − |q|²`, so this stays a fair distance deep inside a strong blob, where `(g − 1)/|∇g|`
+    // saturates near a fifth of its radius and the creases would hollow it out.
+    let d = 2.0 * (g - g.sqrt()) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
+    p.extinction(d, fsum / wsum, reach, |depths, octaves| {
+        let (mut sum, mut w2) = (0.0, 0.0);
         for &(f, k) in &act[..n] {
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
-                sum += w * erosion(h.no + h.nd * t, &p.octaves);
+                sum += w * p.billows.displacement(h.no + h.nd * t, depths, octaves);
+                w2 += w * w;
             }
         }
-        (sum / wsum).clamp(0.0, 1.0)
-    });
-    (sigma, true)
+        // Variance-preserving blend (the blobs' billows are independent with mean ≈ 0): a plain
+        // average would flatten the billows wherever blobs overlap, i.e. on most of a fitted
+        // model's surface. Clamped to the bounds the caller skips by.
+        let total: f32 = depths[..octaves].iter().sum();
+        (sum / w2.sqrt()).clamp(-CREASE * total, (1.0 - CREASE) * total)
+    })
 }
 
 #[cfg(test)]
@@ -180,25 +219,47 @@ mod tests {
     use super::*;
 
     #[test]
-    fn extinction_is_zero_outside_full_deep_inside_and_eroded_between() {
+    fn extinction_is_zero_outside_full_deep_inside_and_displaced_between() {
         let p = DensityParams {
             sigma: 10.0,
             edge: 0.01,
-            depth: 0.05,
-            octaves: Octaves::new(3, 0.0),
+            billows: Billows::new(4, 0.2, 0.0, 0.25, 0.0),
             inv_threshold: 1.0,
         };
-        let e = p.depth;
-        assert_eq!(p.extinction(-0.1, e, || unreachable!()), 0.0);
-        assert_eq!(p.extinction(0.0, e, || unreachable!()), 0.0);
-        assert_eq!(p.extinction(0.07, e, || unreachable!()), 10.0);
-        // On a billow top (erosion 0) the edge ramp starts at the iso-surface; in a crease
-        // (erosion 1) the surface is carved in by the full depth.
-        assert_eq!(p.extinction(0.02, e, || 0.0), 10.0);
-        assert_eq!(p.extinction(0.02, e, || 1.0), 0.0);
-        assert!((p.extinction(0.005, e, || 0.0) - 5.0).abs() < 1e-5);
-        // A thin blob's capped depth cannot carve deeper than the cap.
-        assert_eq!(p.extinction(0.02, 0.005, || 1.0), 10.0);
+        let f = 1.0; // every octave at full depth
+        let total = p.billows.total_depth(f);
+        assert!(
+            (total
+                - 0.25 * 0.2 * (1.0 + 1.0 / 2.03 + 1.0 / 2.03f32.powi(2) + 1.0 / 2.03f32.powi(3)))
+            .abs()
+                < 1e-5
+        );
+        let never = |_: &[f32; 8], _: usize| -> f32 { unreachable!() };
+        // Beyond the highest billow top: nothing, and the march may skip.
+        assert_eq!(
+            p.extinction(-(1.0 - CREASE) * total - 1e-3, f, 1.0, never),
+            (0.0, false)
+        );
+        // Deeper than the deepest crease plus the edge: full density.
+        assert_eq!(
+            p.extinction(CREASE * total + 0.011, f, 1.0, never),
+            (10.0, true)
+        );
+        // Between: the surface is pushed out by a billow top and cut in by a crease.
+        assert_eq!(p.extinction(-0.02, f, 1e9, |_, _| 0.03), (10.0, true));
+        assert_eq!(p.extinction(0.02, f, 1.0, |_, _| -0.03), (0.0, true));
+        let (s, inside) = p.extinction(-0.02, f, 1e9, |_, _| 0.025);
+        assert!(inside && (s - 5.0).abs() < 1e-3, "{s}");
+        // Near the end of the supports a billow top is rounded off: a push of 0.03 where the
+        // supports reach 0.03 further lifts the surface by 0.015 only.
+        assert_eq!(p.extinction(-0.02, f, 0.03, |_, _| 0.03), (0.0, true));
+        let (s, _) = p.extinction(-0.01, f, 0.03, |_, _| 0.03);
+        assert!((s - 5.0).abs() < 1e-3, "{s}");
+        // And no density can lie beyond the reach.
+        assert_eq!(p.extinction(-0.031, f, 0.03, never), (0.0, false));
+        // A part smaller than the finest wavelength gets no billows: the plain edge ramp.
+        assert_eq!(p.extinction(0.005, 0.0, 1.0, never), (5.0, true));
+        assert_eq!(p.extinction(-0.001, 0.0, 1.0, never), (0.0, false));
     }
 
     #[test]

@@ -82,6 +82,6 @@ pub struct Frame {
 /// jitter does not change between frames, so identical blobs give identical frames.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium);
+    let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
     render_medium(settings, &medium, &lights)
 }

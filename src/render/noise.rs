@@ -1,5 +1,6 @@
-//! Seed-free 3-D gradient noise (Perlin 2002, "Improving Noise") and the cloud edge erosion
-//! built from it (billows at the low octaves, wisps at the high ones).
+//! Seed-free 3-D gradient noise (Perlin 2002, "Improving Noise") and the cumulus billows built
+//! from it ([`Billows`]: self-similar octaves of rounded `|noise|`, each present only where the
+//! cloud is large enough to hold it).
 //!
 //! In: a point in noise space (the renderer maps each blob's local frame there, with a seeded
 //! per-blob offset, so the seed enters through the offset and the lattice hash is fixed).
@@ -71,7 +72,7 @@ pub fn gradient_noise(p: Vec3A) -> f32 {
     lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
 }
 
-/// Frequency ratio between erosion octaves: slightly off 2 so octave lattices do not line up.
+/// Wavelength ratio between billow octaves: slightly off 2 so octave lattices do not line up.
 pub const LACUNARITY: f32 = 2.03;
 
 /// Shift between octaves (noise units), so the lattice zeros at the origin do not coincide.
@@ -87,75 +88,128 @@ const EVOLVE_DIR: [Vec3A; 3] = [
 
 /// Billow height of gradient noise `n`: `x(2 − x)` with `x = min(1, 2|n|)` — 0 on the sheets
 /// where `n` crosses zero (the creases between puffs), rising steeply and rounding off on top
-/// (the puffs of cumulus).
+/// (the puffs of cumulus; Wrenninge's pyroclastic `|noise|`, rounded).
 #[inline]
 pub fn billow(p: Vec3A) -> f32 {
     let x = (2.0 * gradient_noise(p).abs()).min(1.0);
     x * (2.0 - x)
 }
 
-/// Most octaves [`Octaves`] holds.
+/// Most octaves [`Billows`] holds.
 pub const MAX_OCTAVES: usize = 8;
 
-/// The per-frame constants of [`erosion`]: each octave's evolution drift and weight, and their
-/// total weight, computed once instead of at every sample.
+/// Share of an octave's depth that lies below the surface: a billow pushes the surface out by
+/// up to `(1 − CREASE)·a_k` on its top and cuts in by up to `CREASE·a_k` in its creases. Near
+/// the mean of [`billow`] (≈ 0.5), so the displaced cloud keeps the model's size on average.
+pub const CREASE: f32 = 0.65;
+
+/// Ratios `F / λ` (local feature size over an octave's wavelength) between which an octave
+/// fades in: absent on a part smaller than 0.2 of its wavelength, full on one 0.6 as large.
+const FADE_IN: (f32, f32) = (0.2, 0.6);
+
+/// The cumulus's billows: octaves of [`billow`] whose wavelengths are fixed in world units
+/// (anchored to each blob's frame by the caller) and whose depths are in proportion to their
+/// wavelengths (self-similar), each present only where the local feature size is larger than
+/// its wavelength, so a small blob, a thin leg and a fat body all get billows of their own
+/// size without the texture stretching as blobs grow.
+///
+/// The displacement at noise point `p` (octave 0 has unit wavelength there) of a part with
+/// feature size `F` is `D = Σ_k a·λ_k·s(F/λ_k)·(billow_k − CREASE)` (world units, positive =
+/// outward), `s` a smoothstep over [`FADE_IN`].
 #[derive(Clone, Copy, Debug)]
-pub struct Octaves {
+pub struct Billows {
     n: usize,
+    /// World wavelength of each octave.
+    wavelength: [f32; MAX_OCTAVES],
+    /// Evolution drift of each octave (noise units).
     drift: [Vec3A; MAX_OCTAVES],
-    weight: [f32; MAX_OCTAVES],
-    norm: f32,
+    /// Depth over wavelength of every octave.
+    amplitude: f32,
 }
 
-impl Octaves {
-    /// `octaves` (at most [`MAX_OCTAVES`]) at evolution `phase`: each octave moves along its
-    /// own direction (slow evolution; 0 = frozen). Octave 0 and 1 weigh 1 and ½, the wisps
-    /// from octave 2 on 0.3, 0.15, …
-    pub fn new(octaves: u32, phase: f32) -> Self {
-        let n = (octaves as usize).min(MAX_OCTAVES);
-        let (mut drift, mut weight) = ([Vec3A::ZERO; MAX_OCTAVES], [0.0; MAX_OCTAVES]);
-        let (mut norm, mut wisp) = (0.0, 0.3f32);
-        for o in 0..n {
-            drift[o] = EVOLVE_DIR[o.min(2)] * (phase * (1.0 + 0.5 * o as f32));
-            weight[o] = match o {
-                0 => 1.0,
-                1 => 0.5,
-                _ => {
-                    wisp *= 0.5;
-                    2.0 * wisp
-                }
-            };
-            norm += weight[o];
-        }
-        Octaves {
-            n,
-            drift,
-            weight,
-            norm,
-        }
-    }
-}
-
-/// Edge erosion in `[0, 1]` at noise point `p`: 0 on the tops of the billows, 1 deep in the
-/// creases. Octave 0 and 1 are [`billow`]s, octave 2 and above wispy plain gradient noise
-/// `½ + ½n` (weights and drifts in [`Octaves`]); no octaves give 0 (no erosion).
-#[inline]
-pub fn erosion(p: Vec3A, oct: &Octaves) -> f32 {
-    let mut sum = 0.0;
-    let mut q = p;
-    for o in 0..oct.n {
-        let h = if o < 2 {
-            billow(q + oct.drift[o])
-        } else {
-            0.5 + 0.5 * gradient_noise(q + oct.drift[o])
+impl Billows {
+    /// `octaves` (at most [`MAX_OCTAVES`]) octaves from `largest` (world units) down, each
+    /// [`LACUNARITY`] times finer, none finer than `finest`; depth `amplitude × wavelength`;
+    /// evolution `phase` (noise units, 0 = frozen).
+    pub fn new(octaves: u32, largest: f32, finest: f32, amplitude: f32, phase: f32) -> Self {
+        let mut b = Billows {
+            n: 0,
+            wavelength: [0.0; MAX_OCTAVES],
+            drift: [Vec3A::ZERO; MAX_OCTAVES],
+            amplitude: amplitude.max(0.0),
         };
-        sum += oct.weight[o] * h;
-        q = q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
+        if !(largest > 0.0) || b.amplitude == 0.0 {
+            return b;
+        }
+        let mut lambda = largest;
+        for o in 0..(octaves as usize).min(MAX_OCTAVES) {
+            if lambda < finest {
+                break;
+            }
+            b.wavelength[o] = lambda;
+            b.drift[o] = EVOLVE_DIR[o % 3] * (phase * (1.0 + 0.5 * o as f32));
+            b.n = o + 1;
+            lambda /= LACUNARITY;
+        }
+        b
     }
-    if oct.norm > 0.0 {
-        (1.0 - sum / oct.norm).clamp(0.0, 1.0)
-    } else {
-        0.0
+
+    /// The same billows without the octaves finer than `finest` (world units): for sampling
+    /// on a lattice that cannot hold them (the light grid).
+    pub fn coarsened(&self, finest: f32) -> Self {
+        let mut b = *self;
+        b.n = self.wavelength[..self.n]
+            .iter()
+            .take_while(|&&l| l >= finest)
+            .count();
+        b
+    }
+
+    /// Number of octaves.
+    pub fn octaves(&self) -> usize {
+        self.n
+    }
+
+    /// Depth `a·λ_k·s(F/λ_k)` of each octave on a part of feature size `feature`, and the
+    /// number of leading octaves that are non-zero.
+    #[inline]
+    pub fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize) {
+        let mut d = [0.0; MAX_OCTAVES];
+        let mut n = 0;
+        let (lo, hi) = FADE_IN;
+        for o in 0..self.n {
+            let l = self.wavelength[o];
+            let r = ((feature / l - lo) / (hi - lo)).clamp(0.0, 1.0);
+            let s = r * r * (3.0 - 2.0 * r);
+            d[o] = self.amplitude * l * s;
+            if s > 0.0 {
+                n = o + 1;
+            }
+        }
+        (d, n)
+    }
+
+    /// Total depth `Σ_k a·λ_k·s(F/λ_k)`: the displacement lies in
+    /// `[−CREASE·total, (1 − CREASE)·total]`.
+    #[inline]
+    pub fn total_depth(&self, feature: f32) -> f32 {
+        let (d, n) = self.depths(feature);
+        d[..n].iter().sum()
+    }
+
+    /// Displacement (world units, positive outward) at noise point `p` for octave depths
+    /// `depths` (from [`Billows::depths`]; only the first `n` are evaluated).
+    #[inline]
+    pub fn displacement(&self, p: Vec3A, depths: &[f32; MAX_OCTAVES], n: usize) -> f32 {
+        let mut sum = 0.0;
+        let mut q = p;
+        for o in 0..n.min(self.n) {
+            if depths[o] > 0.0 {
+                sum += depths[o] * (billow(q + self.drift[o]) - CREASE);
+            }
+            q = q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
+        }
+        sum
     }
 }
 
@@ -163,42 +217,68 @@ pub fn erosion(p: Vec3A, oct: &Octaves) -> f32 {
 mod tests {
     use super::*;
 
+    fn walk(i: usize) -> Vec3A {
+        let t = i as f32;
+        Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011)
+    }
+
     #[test]
-    fn noise_is_zero_on_lattice_and_erosion_bounded_and_varied() {
+    fn noise_is_zero_on_lattice_and_billows_are_bounded_and_varied() {
         assert_eq!(gradient_noise(Vec3A::new(3.0, -2.0, 7.0)), 0.0);
+        let b = Billows::new(4, 1.0, 0.0, 0.25, 0.0);
+        let (depths, n) = b.depths(10.0);
+        assert_eq!(n, 4);
+        let total = b.total_depth(10.0);
         let (mut lo, mut hi, mut sum, mut sq) = (f32::MAX, f32::MIN, 0.0f64, 0.0f64);
-        let n = 20_000;
-        for i in 0..n {
-            let t = i as f32;
-            let p = Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011);
-            let v = erosion(p, &Octaves::new(3, 0.0));
+        let count = 20_000;
+        for i in 0..count {
+            let v = b.displacement(walk(i), &depths, n);
             lo = lo.min(v);
             hi = hi.max(v);
             sum += v as f64;
             sq += (v * v) as f64;
         }
-        let mean = sum / n as f64;
-        let sd = (sq / n as f64 - mean * mean).sqrt();
-        assert!(lo >= 0.0 && hi <= 1.0 && hi - lo > 0.6, "range {lo}..{hi}");
-        assert!(mean > 0.2 && mean < 0.6, "mean {mean}");
-        assert!(sd > 0.08 && sd < 0.4, "sd {sd}");
-        assert_eq!(erosion(Vec3A::ONE, &Octaves::new(0, 0.0)), 0.0);
+        let mean = sum / count as f64;
+        let sd = (sq / count as f64 - mean * mean).sqrt();
+        // Bounded by the documented range, using a good part of it, both signs.
+        assert!(lo >= -CREASE * total && hi <= (1.0 - CREASE) * total);
+        assert!(
+            lo < -0.15 * total && hi > 0.15 * total,
+            "range {lo}..{hi} of {total}"
+        );
+        assert!(mean.abs() < 0.1 * total as f64, "mean {mean}");
+        assert!(sd > 0.05 * total as f64, "sd {sd}");
     }
 
     #[test]
-    fn erosion_is_continuous_and_evolves() {
+    fn octaves_follow_the_feature_size_and_the_finest_wavelength() {
+        let b = Billows::new(8, 0.2, 0.01, 0.25, 0.0);
+        // 0.2 / 2.03^k ≥ 0.01: k ≤ 4.
+        assert_eq!(b.octaves(), 5);
+        assert_eq!(b.coarsened(0.05).octaves(), 2);
+        // A part just below FADE_IN.0 of octave 1's wavelength gets neither octave 0 nor 1,
+        // part of octave 2, and depths in proportion to wavelength where full.
+        let f = 0.99 * FADE_IN.0 * 0.2 / LACUNARITY;
+        let (d, n) = b.depths(f);
+        assert_eq!(d[0], 0.0);
+        assert_eq!(d[1], 0.0);
+        assert!(d[2] > 0.0 && d[2] < 0.25 * 0.2 / LACUNARITY.powi(2));
+        assert!((d[4] / d[3] - 1.0 / LACUNARITY).abs() < 1e-5);
+        assert_eq!(n, 5);
+        // No feature, no billows; none without amplitude.
+        assert_eq!(b.total_depth(0.0), 0.0);
+        assert_eq!(Billows::new(8, 0.2, 0.01, 0.0, 0.0).octaves(), 0);
+    }
+
+    #[test]
+    fn billows_are_continuous_and_evolve() {
         let p = Vec3A::new(1.234, 5.678, -9.1);
         let e = Vec3A::splat(1e-4);
-        assert!(
-            (erosion(p, &Octaves::new(3, 0.0)) - erosion(p + e, &Octaves::new(3, 0.0))).abs()
-                < 1e-2
-        );
-        assert!(
-            (erosion(p, &Octaves::new(3, 0.0)) - erosion(p, &Octaves::new(3, 1e-4))).abs() < 1e-2
-        );
-        assert_ne!(
-            erosion(p, &Octaves::new(3, 0.0)),
-            erosion(p, &Octaves::new(3, 0.37))
-        );
+        let b = |phase| Billows::new(3, 1.0, 0.0, 0.25, phase);
+        let (d, n) = b(0.0).depths(10.0);
+        let v = b(0.0).displacement(p, &d, n);
+        assert!((v - b(0.0).displacement(p + e, &d, n)).abs() < 1e-2);
+        assert!((v - b(1e-4).displacement(p, &d, n)).abs() < 1e-2);
+        assert_ne!(v, b(0.37).displacement(p, &d, n));
     }
 }

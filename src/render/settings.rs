@@ -99,17 +99,20 @@ impl Default for Sky {
     }
 }
 
-/// Noise that erodes the cloud's edge into billows and wisps, anchored to the blobs.
+/// The cumulus billows that displace the cloud's surface, anchored to the blobs.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Noise {
-    /// Erosion depth: how far the creases between billows cut into the cloud, as a fraction of
-    /// the target's bounding-box diagonal (0 = smooth blobs).
+    /// Depth of each octave of billows as a fraction of its wavelength (self-similar: the same
+    /// at every scale); the surface is pushed out by up to half of it on a billow's top and cut
+    /// in by up to half in a crease (0 = smooth blobs).
     pub amplitude: f32,
     /// Frequency of the largest billows in cycles per bounding-box diagonal of the target
-    /// (each further octave is about twice as fine).
+    /// (each further octave is about twice as fine; an octave appears only on parts at least
+    /// as large as its wavelength).
     pub frequency: f32,
-    /// Number of octaves: 1–2 billowy, 3 and up wispy (0 = no erosion).
+    /// Most octaves (at most 8); octaves finer than four pixels of the frame are left out
+    /// (0 = smooth blobs).
     pub octaves: u32,
     /// Slow evolution of the noise, in cycles per second (0 = frozen; the noise then only
     /// moves with the blobs).
@@ -119,9 +122,9 @@ pub struct Noise {
 impl Default for Noise {
     fn default() -> Self {
         Noise {
-            amplitude: 0.025,
-            frequency: 7.0,
-            octaves: 3,
+            amplitude: 0.5,
+            frequency: 5.0,
+            octaves: 8,
             evolve: 0.0,
         }
     }
@@ -154,7 +157,7 @@ impl Default for CloudMaterial {
     fn default() -> Self {
         CloudMaterial {
             density: 40.0,
-            edge: 0.02,
+            edge: 0.008,
             albedo: 0.95,
             phase_g: 0.75,
             multiple_scattering: true,
@@ -267,4 +270,15 @@ pub struct RenderSettings {
     pub time: f32,
     /// March quality.
     pub quality: Quality,
+}
+
+impl RenderSettings {
+    /// World size of one pixel at the camera's look-at distance (the scale of the finest detail
+    /// the frame resolves).
+    pub fn pixel_footprint(&self) -> f32 {
+        let c = &self.camera;
+        let dist = (c.look_at - c.position).length();
+        let half = (0.5 * c.fov_deg.to_radians()).tan();
+        (2.0 * dist * half / self.height.max(1) as f32).max(0.0)
+    }
 }
