@@ -11,8 +11,9 @@
 //! [`slurm_array_script`]) and Kubernetes Job manifests ([`k8s_prepare_job`],
 //! [`k8s_indexed_job`]). Every path in them is absolute, so they work from any folder.
 
-use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
+
+use crate::scene::frames::selection_text;
 
 /// One shot to render on a farm.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,8 +26,8 @@ pub struct FarmJob {
     pub scene: PathBuf,
     /// The output folder given to every task as `--output` (absolute).
     pub output: PathBuf,
-    /// 1-based inclusive frames, split among the tasks.
-    pub frames: RangeInclusive<u32>,
+    /// Frame numbers (sorted), split among the tasks.
+    pub frames: Vec<u32>,
     /// Number of array tasks.
     pub tasks: u32,
     /// Render previews (`--preview`).
@@ -58,7 +59,7 @@ impl FarmJob {
             "--output".into(),
             path_text(&self.output),
             "--frames".into(),
-            format!("{}..{}", self.frames.start(), self.frames.end()),
+            selection_text(&self.frames),
             "--task".into(),
             task.into(),
         ];
@@ -125,11 +126,10 @@ fn slurm_header(job: &FarmJob) -> String {
 /// The comment line that opens every job file: the command, version, scene, frames and tasks.
 fn written_by(command: &str, job: &FarmJob) -> String {
     format!(
-        "# Written by `{command}` (nephele {}): {} frames {}..{} in {} tasks.\n",
+        "# Written by `{command}` (nephele {}): {} frames {} in {} tasks.\n",
         env!("CARGO_PKG_VERSION"),
         path_text(&job.scene),
-        job.frames.start(),
-        job.frames.end(),
+        selection_text(&job.frames),
         job.tasks
     )
 }
@@ -271,7 +271,7 @@ mod tests {
             nephele: "/opt/nephele/bin/nephele".into(),
             scene: "/farm/scenes/duck diffusion.ron".into(),
             output: "/farm/renders/duck".into(),
-            frames: 1..=96,
+            frames: (1..=96).collect(),
             tasks: 4,
             preview: true,
             logs: "/farm/renders/duck/preview/logs".into(),

@@ -349,7 +349,7 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     let s = scene::load_scene(&path).unwrap();
     let out = dir.join("out");
     let opts = RenderOptions {
-        frames: Some((6, 6)),
+        frames: Some(nephele::scene::frames::FrameSelection::range(6, 6)),
         output: Some(out.clone()),
         ..RenderOptions::default()
     };
@@ -479,7 +479,7 @@ fn usd_stage_camera_projects_like_the_renderer() {
     };
     let shot = scene::Shot::open(s.clone(), &opts).unwrap();
     let first = RenderOptions {
-        frames: Some((1, 1)),
+        frames: Some(nephele::scene::frames::FrameSelection::range(1, 1)),
         ..opts.clone()
     };
     scene::render_shot(&s, &first, &mut |_| {}).unwrap();

@@ -103,7 +103,8 @@ fn task_chunks_cover_the_shot_once_and_equal_a_whole_render() {
         seen = now;
     }
     same_bytes(&dir.join("whole"), &dir.join("tasks"));
-    assert_eq!(frame_files(&dir.join("tasks")).len(), 20);
+    // EXR, PNG and the manifest of each of the 10 frames.
+    assert_eq!(frame_files(&dir.join("tasks")).len(), 30);
     // A chunk of a --frames range.
     let t = run(bin(&dir)
         .args(["render", "shot.ron", "--output", "tasks"])
@@ -126,8 +127,10 @@ fn auto_reads_each_array_engines_index_variable() {
             frame_files(&dir.join(&out)),
             [
                 "shot_0007.exr",
+                "shot_0007.manifest.json",
                 "shot_0007.png",
                 "shot_0008.exr",
+                "shot_0008.manifest.json",
                 "shot_0008.png"
             ],
             "{var}"
@@ -167,7 +170,7 @@ fn tasks_racing_on_a_missing_cache_fit_the_same_target() {
         std::fs::read(dir.join("ref").join(caches[0])).unwrap(),
         "the racing fits differ from the prepared one"
     );
-    assert_eq!(frame_files(&dir.join("race")).len(), 4);
+    assert_eq!(frame_files(&dir.join("race")).len(), 6);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -173,12 +173,12 @@ check_completed() {
 $info"
 }
 
-# same_frames DIR_A DIR_B FIRST LAST: both folders hold exactly frames FIRST..LAST (EXR and
-# PNG), byte-identical.
+# same_frames DIR_A DIR_B FIRST LAST: both folders hold exactly frames FIRST..LAST (EXR, PNG
+# and the frame's manifest), byte-identical.
 same_frames() {
 	local a=$1 b=$2 n=0
 	for ((f = $3; f <= $4; f++)); do
-		for ext in exr png; do
+		for ext in exr png manifest.json; do
 			local name
 			name=$(printf 'duck-diffusion_%04d.%s' "$f" "$ext")
 			[ -f "$a/$name" ] || fail "$a/$name is missing"
@@ -239,9 +239,9 @@ t=$(now)
 out=$("$bin" farm "$scene" --engine slurm --frames 85..96 --chunk 3 --output "$farm" --submit)
 read -r prep arr <<<"$(job_ids "$out")"
 jobs_submitted="$prep $arr"
-# Task 0 renders frames 85..87: SIGKILL it as soon as frame 85 is finished (its PNG is written
-# last), so the kill lands while it renders frame 86; then requeue the failed task.
-wait_for 120 "task 0's first frame" test -f "$farm/duck-diffusion_0085.png"
+# Task 0 renders frames 85..87: SIGKILL it as soon as frame 85 is finished (its manifest is
+# written last), so the kill lands while it renders frame 86; then requeue the failed task.
+wait_for 120 "task 0's first frame" test -f "$farm/duck-diffusion_0085.manifest.json"
 # The batch script execs nephele, so the batch step's nephele process is the task.
 task0=$(scontrol -o show job "${arr}_0" | sed -n 's/^JobId=\([0-9]*\) .*/\1/p')
 victim=""
@@ -257,7 +257,7 @@ for _ in $(seq 300); do
 done
 [ "$state" = JobState=FAILED ] || fail "task 0 is not FAILED after SIGKILL: $(scontrol -o show job "${arr}_0")
 $(cat "$farm/logs/duck-diffusion_${arr}_0.log")"
-[ ! -e "$farm/duck-diffusion_0087.png" ] || fail "task 0 had finished its chunk before the kill"
+[ ! -e "$farm/duck-diffusion_0087.manifest.json" ] || fail "task 0 had finished its chunk before the kill"
 scontrol requeue "${arr}_0"
 wait_jobs 300 "$prep" "$arr"
 farm_full=$(since "$t")

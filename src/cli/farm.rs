@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 use nephele::farm::{self, FarmJob, K8sPod};
 use nephele::scene::{self, RenderOptions, Shot, chunk};
 
-use super::render::FrameArg;
+use nephele::scene::frames::FrameSelection;
 
 /// The job-array engine to write jobs for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -33,8 +33,8 @@ pub struct Args {
     pub chunk: Option<u32>,
     /// Frames to render, as for `render --frames` (default: the scene's `frames`, else the
     /// whole shot).
-    #[arg(long, value_parser = super::render::parse_frames)]
-    pub frames: Option<FrameArg>,
+    #[arg(long)]
+    pub frames: Option<FrameSelection>,
     /// Render previews (`render --preview`): the jobs then live in <output>/preview/.
     #[arg(long)]
     pub preview: bool,
@@ -73,9 +73,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let scene = scene::load_scene(&args.scene)?;
-    let total = scene.file.shot.frame_count();
     let opts = RenderOptions {
-        frames: args.frames.map(|f| f.resolve(total)),
+        frames: args.frames.clone(),
         output: args.output.clone(),
         preview: args.preview,
         ..RenderOptions::default()
@@ -84,8 +83,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = shot.scene();
     let chunk_frames = args
         .chunk
-        .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(&shot.frames())));
-    let tasks = chunk::task_count(&shot.frames(), chunk_frames)?;
+        .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(shot.frames())));
+    let tasks = chunk::task_count(shot.frames(), chunk_frames)?;
     nephele::atomic::check_writable(shot.dir())
         .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
     let absolute =
@@ -107,7 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         nephele,
         scene: absolute(&args.scene)?,
         output: absolute(shot.cache_dir())?,
-        frames: shot.frames(),
+        frames: shot.frames().to_vec(),
         tasks,
         preview: args.preview,
         logs: dir.join("logs"),
@@ -159,11 +158,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     println!(
-        "{} tasks of at most {} frames (frames {}..{}):\n  {}\n  {}",
+        "{} tasks of at most {} frames (frames {}):\n  {}\n  {}",
         tasks,
         chunk_frames,
-        shot.frames().start(),
-        shot.frames().end(),
+        nephele::scene::frames::selection_text(shot.frames()),
         prepare.display(),
         array.display()
     );

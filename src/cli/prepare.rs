@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use nephele::scene::provenance::FrameStatus;
 use nephele::scene::target::TargetOrigin;
 use nephele::scene::{self, RenderOptions, Shot};
 
@@ -41,6 +42,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         TargetOrigin::Cached(p) => eprintln!("target already cached in {}", p.display()),
         TargetOrigin::ModelFile(p) => eprintln!("target is the model file {}", p.display()),
     }
-    eprintln!("{}: ready to render", shot.dir().display());
+    // The render's own rule: how many of the frames a render would skip, and why not the rest.
+    let statuses = shot.statuses()?;
+    let done = statuses
+        .iter()
+        .filter(|(_, s)| *s == FrameStatus::UpToDate)
+        .count();
+    let mut stale: Vec<(String, u32)> = Vec::new();
+    for (_, s) in statuses {
+        if let FrameStatus::OutOfDate(reason) = s {
+            match stale.iter_mut().find(|(r, _)| *r == reason) {
+                Some((_, n)) => *n += 1,
+                None => stale.push((reason, 1)),
+            }
+        }
+    }
+    let why: Vec<String> = stale.iter().map(|(r, n)| format!("{n} {r}")).collect();
+    eprintln!(
+        "{}: ready to render; {done} of {} frames up to date{}",
+        shot.dir().display(),
+        shot.frames().len(),
+        if why.is_empty() {
+            String::new()
+        } else {
+            format!(", out of date: {}", why.join("; "))
+        }
+    );
     Ok(())
 }

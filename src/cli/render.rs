@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use nephele::scene::frames::{FrameSelection, selection_text};
 use nephele::scene::{self, RenderOptions, Shot};
 
 /// Arguments of `nephele render`.
@@ -10,10 +11,11 @@ use nephele::scene::{self, RenderOptions, Shot};
 pub struct Args {
     /// Scene file (RON); see scenes/README.md.
     pub scene: PathBuf,
-    /// Frames to render, 1-based and inclusive: `A..B`, `A..`, `..B` or `A` (default: the
-    /// scene's `frames`, else the whole shot).
-    #[arg(long, value_parser = parse_frames)]
-    pub frames: Option<FrameArg>,
+    /// Frames to render, in the shot's frame numbers: comma-separated `A..B` (inclusive),
+    /// `A..`, `..B` or `A`, e.g. `1001..1010,1050` (default: the scene's `frames`, else the
+    /// whole shot).
+    #[arg(long)]
+    pub frames: Option<FrameSelection>,
     /// Output folder (default: the scene's `output.dir`, else renders/<scene name>).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -69,52 +71,14 @@ fn parse_format(s: &str) -> Result<scene::Format, String> {
         .ok_or_else(|| format!("'{s}' is not a format (use exr, png, vdb or vol)"))
 }
 
-/// A `--frames` value: bounds left open are filled from the shot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct FrameArg {
-    /// First frame (1-based), if given.
-    pub first: Option<u32>,
-    /// Last frame (inclusive), if given.
-    pub last: Option<u32>,
-}
-
-impl FrameArg {
-    /// The inclusive range, open bounds filled from a shot of `total` frames.
-    pub fn resolve(self, total: u32) -> (u32, u32) {
-        (self.first.unwrap_or(1), self.last.unwrap_or(total))
-    }
-}
-
-pub(crate) fn parse_frames(s: &str) -> Result<FrameArg, String> {
-    let num = |t: &str| -> Result<Option<u32>, String> {
-        let t = t.trim();
-        if t.is_empty() {
-            return Ok(None);
-        }
-        t.parse::<u32>()
-            .map(Some)
-            .map_err(|_| format!("'{t}' is not a frame number (frames are 1-based)"))
-    };
-    let (first, last) = match s.split_once("..") {
-        Some((a, b)) => (num(a)?, num(b.strip_prefix('=').unwrap_or(b))?),
-        None => {
-            let n = num(s)?.ok_or("empty frame range")?;
-            (Some(n), Some(n))
-        }
-    };
-    Ok(FrameArg { first, last })
-}
-
 /// Run `nephele render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = scene::load_scene(&args.scene)?;
     if !args.formats.is_empty() {
         scene.file.output.formats = args.formats.clone();
     }
-    let total = scene.file.shot.frame_count();
-    let frames = args.frames.map(|f| f.resolve(total));
     let opts = RenderOptions {
-        frames,
+        frames: args.frames.clone(),
         output: args.output,
         preview: args.preview,
         force: args.force,
@@ -126,18 +90,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(task) = args.task {
         let (index, frames) = task_frames(task, shot.frames())?;
         eprintln!(
-            "task {index}/{}: frames {}..{} of {}..{}",
+            "task {index}/{}: frames {} of {}",
             task.count,
-            frames.start(),
-            frames.end(),
-            shot.frames().start(),
-            shot.frames().end()
+            selection_text(&frames),
+            selection_text(shot.frames())
         );
         shot.set_frames(frames);
     }
     nephele::atomic::check_writable(shot.dir())
         .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
-    let count = scene::chunk::frame_count(&shot.frames()) as u64;
+    let count = shot.frames().len() as u64;
     let bar = nephele::progress::bar(&name, count);
     let report = shot
         .run(&mut |f| {
@@ -168,6 +130,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.rendered,
         report.skipped
     );
+    if !report.out_of_date.is_empty() {
+        let why: Vec<String> = report
+            .out_of_date
+            .iter()
+            .map(|(reason, n)| format!("{n} {reason}"))
+            .collect();
+        let n: u32 = report.out_of_date.iter().map(|(_, n)| n).sum();
+        eprintln!(
+            "{n} of the rendered frames were out of date: {}",
+            why.join("; ")
+        );
+    }
     if let Some(p) = &report.stats {
         eprintln!("statistics in {}", p.display());
     }
@@ -190,33 +164,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// The index of `task` (read from the environment for `auto`) and the frames of its chunk of
 /// `frames`.
-fn task_frames(
-    task: TaskArg,
-    frames: std::ops::RangeInclusive<u32>,
-) -> anyhow::Result<(u32, std::ops::RangeInclusive<u32>)> {
+fn task_frames(task: TaskArg, frames: &[u32]) -> anyhow::Result<(u32, Vec<u32>)> {
     use nephele::scene::chunk;
     let index = match task.index {
         Some(i) => i,
         None => chunk::index_from_env(task.count, |var| std::env::var(var).ok())?,
     };
-    Ok((index, chunk::chunk(frames, index, task.count)?))
+    Ok((index, chunk::chunk(frames, index, task.count)?.to_vec()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn frame_ranges_parse() {
-        let f = |a, b| FrameArg { first: a, last: b };
-        assert_eq!(parse_frames("1..1"), Ok(f(Some(1), Some(1))));
-        assert_eq!(parse_frames("3..=9"), Ok(f(Some(3), Some(9))));
-        assert_eq!(parse_frames("5.."), Ok(f(Some(5), None)));
-        assert_eq!(parse_frames("..7"), Ok(f(None, Some(7))));
-        assert_eq!(parse_frames("12"), Ok(f(Some(12), Some(12))));
-        assert!(parse_frames("a..3").is_err());
-        assert!(parse_frames("").is_err());
-    }
 
     #[test]
     fn tasks_parse() {

@@ -29,6 +29,7 @@
 
 pub mod blobs;
 pub mod camera;
+pub mod color;
 pub mod density;
 pub mod integrate;
 pub mod lattice;

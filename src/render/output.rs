@@ -23,6 +23,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::camera::CameraRays;
+use super::color::ColorSpace;
 use super::{Frame, RenderSettings};
 
 /// Write `frame` as an OpenEXR file with R, G, B, A (and Z depth) channels, atomically.
@@ -47,6 +48,11 @@ pub struct FrameMetadata {
     pub world_to_camera: [f32; 16],
     /// `worldToNDC` (row-major m44f, row-vector convention).
     pub world_to_ndc: [f32; 16],
+    /// The RGB space the file holds: the renderer's Rec.709 values are converted to it, and
+    /// its `chromaticities` are written.
+    pub color_space: ColorSpace,
+    /// `framesPerSecond` (a rational, [`fps_rational`]).
+    pub frames_per_second: Option<(i32, u32)>,
     /// `nephele/…` strings: `(key without the prefix, value)`.
     pub strings: Vec<(String, String)>,
 }
@@ -65,9 +71,33 @@ impl FrameMetadata {
         FrameMetadata {
             world_to_camera: world_to_camera.map(|v| v as f32),
             world_to_ndc: world_to_ndc.map(|v| v as f32),
+            color_space: ColorSpace::Rec709,
+            frames_per_second: None,
             strings,
         }
     }
+}
+
+/// A frame rate as OpenEXR's rational `framesPerSecond`: whole rates as `n/1`, rates of a few
+/// decimals exactly (`12.5` → `25/2`), NTSC rates as `n·1000/1001` (`23.976` → `24000/1001`,
+/// `29.97` → `30000/1001`), anything else to a thousandth.
+pub fn fps_rational(fps: f64) -> (i32, u32) {
+    let exact = |den: u32| {
+        let num = fps * den as f64;
+        ((num - num.round()).abs() < 1e-9 * num.abs().max(1.0)).then(|| (num.round() as i32, den))
+    };
+    if let Some(r) = exact(1) {
+        return r;
+    }
+    // 23.976 is written for 24000/1001 (23.97602…), 29.97 for 30000/1001.
+    let ntsc = fps * 1.001;
+    if (ntsc - ntsc.round()).abs() < 1e-3 {
+        return ((ntsc.round() * 1000.0) as i32, 1001);
+    }
+    [2u32, 4, 5, 8, 10, 20, 25, 50, 100, 1000]
+        .into_iter()
+        .find_map(exact)
+        .unwrap_or(((fps * 1000.0).round() as i32, 1000))
 }
 
 /// The camera of a frame as the renderer casts its rays: eye, orthonormal axes and the
@@ -145,7 +175,18 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     use exr::prelude::*;
     let size = (frame.width as usize, frame.height as usize);
     let chan = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
-    let rgb = |c: usize| frame.rgb.iter().map(|p| p[c]).collect::<Vec<f32>>();
+    let space = meta.map_or(ColorSpace::Rec709, |m| m.color_space);
+    let to_space = space.from_rec709().as_mat3();
+    let rgb = |c: usize| {
+        frame
+            .rgb
+            .iter()
+            .map(|&p| match space {
+                ColorSpace::Rec709 => p[c],
+                _ => (to_space * Vec3::from(p))[c],
+            })
+            .collect::<Vec<f32>>()
+    };
     let channels = AnyChannels::sort(SmallVec::from_vec(vec![
         chan("R", rgb(0)),
         chan("G", rgb(1)),
@@ -157,6 +198,7 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     if let Some(meta) = meta {
         attributes.world_to_camera = Some(meta.world_to_camera);
         attributes.world_to_normalized_device = Some(meta.world_to_ndc);
+        attributes.frames_per_second = meta.frames_per_second;
         for (key, value) in &meta.strings {
             attributes.other.insert(
                 latin1_text(&format!("nephele/{key}")),
@@ -165,8 +207,19 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
         }
     }
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
+    let mut image = Image::from_layer(layer);
+    if meta.is_some() {
+        let c = space.chromaticities();
+        let xy = |[x, y]: [f64; 2]| Vec2(x as f32, y as f32);
+        image.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+            red: xy(c.red),
+            green: xy(c.green),
+            blue: xy(c.blue),
+            white: xy(c.white),
+        });
+    }
     let mut bytes = Cursor::new(Vec::new());
-    Image::from_layer(layer)
+    image
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| std::io::Error::other(format!("EXR encoding failed: {e}")))?;
@@ -269,5 +322,21 @@ pub fn srgb_encode(v: f32) -> f32 {
         12.92 * v
     } else {
         1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_rates_are_rationals() {
+        assert_eq!(fps_rational(24.0), (24, 1));
+        assert_eq!(fps_rational(23.976), (24000, 1001));
+        assert_eq!(fps_rational(24000.0 / 1001.0), (24000, 1001));
+        assert_eq!(fps_rational(29.97), (30000, 1001));
+        assert_eq!(fps_rational(59.94), (60000, 1001));
+        assert_eq!(fps_rational(12.5), (25, 2));
+        assert_eq!(fps_rational(7.3), (73, 10));
     }
 }

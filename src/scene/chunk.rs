@@ -1,16 +1,14 @@
 //! Splitting a shot's frames into contiguous chunks for a farm's job array.
 //!
 //! Task `I` of `N` (0-based) renders chunk `I` of the requested frames cut into `N` contiguous
-//! chunks whose sizes differ by at most one, the larger ones first: frames `a..=b` (`M` frames,
-//! `M = q·N + r`) give chunk `I` the `q + 1` frames starting at `a + I·(q + 1)` when `I < r`,
-//! else the `q` frames starting at `a + r·(q + 1) + (I − r)·q`. The split depends only on the
-//! frame range and `N`, so every task of an array computes the same split on its own, and the
-//! chunks cover the range exactly once.
+//! chunks whose sizes differ by at most one, the larger ones first: `M` frames (`M = q·N + r`,
+//! in the order of the list, a range or a list such as `1001..1010,1050`) give chunk `I` the
+//! `q + 1` frames starting at position `I·(q + 1)` when `I < r`, else the `q` frames starting
+//! at `r·(q + 1) + (I − r)·q`. The split depends only on the frame list and `N`, so every task
+//! of an array computes the same split on its own, and the chunks cover the list exactly once.
 //!
 //! The task index comes from the command line or, with `auto`, from the job-array engine's
 //! environment variable ([`ARRAY_INDEX_VARS`]).
-
-use std::ops::RangeInclusive;
 
 /// Environment variables that carry a job-array task's 0-based index, in the order they are
 /// consulted: Slurm job arrays, Kubernetes Indexed Jobs, AWS Batch array jobs.
@@ -76,30 +74,26 @@ pub enum ChunkError {
 
 /// Chunk `index` (0-based) of `frames` cut into `count` contiguous chunks (see the module docs
 /// for the exact split).
-pub fn chunk(
-    frames: RangeInclusive<u32>,
-    index: u32,
-    count: u32,
-) -> Result<RangeInclusive<u32>, ChunkError> {
+pub fn chunk(frames: &[u32], index: u32, count: u32) -> Result<&[u32], ChunkError> {
     if count == 0 {
         return Err(ChunkError::NoTasks);
     }
     if index >= count {
         return Err(ChunkError::IndexOutOfRange { index, count });
     }
-    let m = frame_count(&frames);
+    let m = frame_count(frames);
     if count > m {
         return Err(ChunkError::MoreTasksThanFrames { count, frames: m });
     }
     let (q, r) = (m / count, m % count);
-    let first = frames.start() + index * q + index.min(r);
-    let len = q + u32::from(index < r);
-    Ok(first..=first + len - 1)
+    let first = (index * q + index.min(r)) as usize;
+    let len = (q + u32::from(index < r)) as usize;
+    Ok(&frames[first..first + len])
 }
 
 /// The number of tasks that cut `frames` into chunks of at most `chunk` frames:
 /// `ceil(M / chunk)`. Their [`chunk`]s are balanced, so none exceeds `chunk`.
-pub fn task_count(frames: &RangeInclusive<u32>, chunk: u32) -> Result<u32, ChunkError> {
+pub fn task_count(frames: &[u32], chunk: u32) -> Result<u32, ChunkError> {
     let m = frame_count(frames);
     if chunk == 0 || chunk > m {
         return Err(ChunkError::BadChunkSize { chunk, frames: m });
@@ -124,13 +118,9 @@ pub fn index_from_env(
     Err(ChunkError::NoIndexVariable { count })
 }
 
-/// Frames in an inclusive range (0 when empty).
-pub fn frame_count(frames: &RangeInclusive<u32>) -> u32 {
-    if frames.is_empty() {
-        0
-    } else {
-        frames.end() - frames.start() + 1
-    }
+/// Frames in a list (a shot has at most [`super::frames::MAX_FRAMES`], so it fits `u32`).
+pub fn frame_count(frames: &[u32]) -> u32 {
+    frames.len() as u32
 }
 
 #[cfg(test)]
@@ -140,44 +130,51 @@ mod tests {
     #[test]
     fn chunks_are_balanced_contiguous_and_cover_once() {
         for m in 1..40u32 {
+            let frames: Vec<u32> = (5..5 + m).collect();
             for n in 1..=m {
                 let mut next = 5;
                 for i in 0..n {
-                    let c = chunk(5..=4 + m, i, n).unwrap();
-                    assert_eq!(*c.start(), next, "m {m} n {n} i {i}");
-                    let len = c.end() - c.start() + 1;
+                    let c = chunk(&frames, i, n).unwrap();
+                    assert_eq!(c[0], next, "m {m} n {n} i {i}");
+                    let len = c.len() as u32;
                     assert!(len == m / n || len == m.div_ceil(n), "m {m} n {n} i {i}");
-                    next = c.end() + 1;
+                    assert!(c.windows(2).all(|w| w[1] == w[0] + 1));
+                    next = c[c.len() - 1] + 1;
                 }
                 assert_eq!(next, 5 + m);
             }
         }
         // The larger chunks come first.
-        assert_eq!(chunk(1..=10, 0, 4), Ok(1..=3));
-        assert_eq!(chunk(1..=10, 1, 4), Ok(4..=6));
-        assert_eq!(chunk(1..=10, 2, 4), Ok(7..=8));
-        assert_eq!(chunk(1..=10, 3, 4), Ok(9..=10));
+        let ten: Vec<u32> = (1..=10).collect();
+        assert_eq!(chunk(&ten, 0, 4), Ok(&[1, 2, 3][..]));
+        assert_eq!(chunk(&ten, 1, 4), Ok(&[4, 5, 6][..]));
+        assert_eq!(chunk(&ten, 2, 4), Ok(&[7, 8][..]));
+        assert_eq!(chunk(&ten, 3, 4), Ok(&[9, 10][..]));
+        // A list is cut by position: 1001..1003,1050 in two tasks.
+        let list = [1001, 1002, 1003, 1050];
+        assert_eq!(chunk(&list, 1, 2), Ok(&[1003, 1050][..]));
     }
 
     #[test]
     fn bad_requests_are_refused() {
-        assert_eq!(chunk(1..=96, 0, 0), Err(ChunkError::NoTasks));
+        let shot: Vec<u32> = (1..=96).collect();
+        assert_eq!(chunk(&shot, 0, 0), Err(ChunkError::NoTasks));
         assert_eq!(
-            chunk(1..=96, 4, 4),
+            chunk(&shot, 4, 4),
             Err(ChunkError::IndexOutOfRange { index: 4, count: 4 })
         );
         assert_eq!(
-            chunk(1..=3, 0, 4),
+            chunk(&shot[..3], 0, 4),
             Err(ChunkError::MoreTasksThanFrames {
                 count: 4,
                 frames: 3
             })
         );
-        assert!(task_count(&(1..=96), 0).is_err());
-        assert!(task_count(&(1..=96), 97).is_err());
-        assert_eq!(task_count(&(1..=96), 24), Ok(4));
-        assert_eq!(task_count(&(1..=96), 25), Ok(4));
-        assert_eq!(task_count(&(1..=96), 96), Ok(1));
+        assert!(task_count(&shot, 0).is_err());
+        assert!(task_count(&shot, 97).is_err());
+        assert_eq!(task_count(&shot, 24), Ok(4));
+        assert_eq!(task_count(&shot, 25), Ok(4));
+        assert_eq!(task_count(&shot, 96), Ok(1));
     }
 
     #[test]

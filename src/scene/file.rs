@@ -15,6 +15,7 @@ use super::SceneError;
 use super::camera::CameraKeyframes;
 use super::transform::TargetTransform;
 use crate::animate::Animation;
+use crate::render::color::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 
 /// A scene file as written (`Scene(...)`; the struct name may also be left out).
@@ -44,7 +45,7 @@ pub struct SceneFile {
     /// Resolution, frame rate and length.
     #[serde(default)]
     pub shot: ShotSpec,
-    /// Frames to render, 1-based and inclusive (`None` = the whole shot).
+    /// Frames to render, first and last frame number, inclusive (`None` = the whole shot).
     #[serde(default)]
     pub frames: Option<(u32, u32)>,
     /// Exposure in stops for the PNG frames.
@@ -191,6 +192,8 @@ pub struct ShotSpec {
     /// Open shutter as a fraction of a frame, centred on the frame's time (`0` = no motion
     /// blur, the default; `0.5` = a 180° film shutter; at most 1).
     pub shutter: f64,
+    /// Number of the first frame (film pipelines start at 1001); see [`super::frames`].
+    pub start_frame: u32,
 }
 
 impl Default for ShotSpec {
@@ -201,14 +204,20 @@ impl Default for ShotSpec {
             fps: 24.0,
             seconds: 4.0,
             shutter: 0.0,
+            start_frame: 1,
         }
     }
 }
 
 impl ShotSpec {
-    /// Number of frames.
+    /// Number of frames (a validated shot has at most [`super::frames::MAX_FRAMES`]).
     pub fn frame_count(&self) -> u32 {
         ((self.seconds * self.fps).round() as u32).max(1)
+    }
+
+    /// The last frame number.
+    pub fn last_frame(&self) -> u32 {
+        self.start_frame + (self.frame_count() - 1)
     }
 }
 
@@ -265,6 +274,10 @@ pub struct OutputSpec {
     /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
     /// diagonal / 256).
     pub voxel: Option<f64>,
+    /// Digits of the frame number in file names (default 4: `name_0001.exr`).
+    pub padding: u32,
+    /// The RGB space of the EXR's linear values (the PNG is always sRGB display-referred).
+    pub colorspace: ColorSpace,
 }
 
 impl Default for OutputSpec {
@@ -274,6 +287,8 @@ impl Default for OutputSpec {
             name: None,
             formats: vec![Format::Exr, Format::Png],
             voxel: None,
+            padding: 4,
+            colorspace: ColorSpace::default(),
         }
     }
 }
@@ -323,14 +338,47 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
             ),
         ));
     }
-    let n = s.shot.frame_count();
-    if let Some((a, b)) = s.frames {
-        if a == 0 || a > b || b > n {
-            return Err(bad(
-                "frames",
-                format!("need 1 ≤ first ≤ last ≤ {n} (the shot's frames), got ({a}, {b})"),
-            ));
-        }
+    // Counted in f64 before any integer conversion or list of frames.
+    let count = (s.shot.seconds * s.shot.fps).round();
+    let max = super::frames::MAX_FRAMES;
+    if count > max as f64 {
+        return Err(bad(
+            "shot",
+            format!(
+                "{} s at {} fps is {count:.3e} frames, more than the limit of {max} \
+                 (11.5 hours at 24 fps); shorten shot.seconds or lower shot.fps",
+                s.shot.seconds, s.shot.fps
+            ),
+        ));
+    }
+    let (first, n) = (s.shot.start_frame, s.shot.frame_count());
+    if u64::from(first) + u64::from(n) - 1 > u64::from(u32::MAX) {
+        return Err(bad(
+            "shot.start_frame",
+            format!(
+                "{first} + {n} frames passes the largest frame number {}",
+                u32::MAX
+            ),
+        ));
+    }
+    let last = s.shot.last_frame();
+    if let Some((a, b)) = s.frames
+        && (a < first || a > b || b > last)
+    {
+        return Err(bad(
+            "frames",
+            format!("need {first} ≤ first ≤ last ≤ {last} (the shot's frames), got ({a}, {b})"),
+        ));
+    }
+    let padding = s.output.padding;
+    if !(1..=super::frames::MAX_PADDING).contains(&padding) {
+        return Err(bad(
+            "output.padding",
+            format!(
+                "must be 1 to {} digits, got {padding}",
+                super::frames::MAX_PADDING
+            ),
+        ));
     }
     finite("exposure", &[s.exposure])?;
     let fov = |f: f32| {

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use super::shot::Shot;
-use super::{Format, SceneError};
+use super::{Format, SceneError, provenance};
 use crate::blobby::Blob;
 use crate::render::{self, RenderSettings};
 
@@ -25,9 +25,12 @@ pub fn frame_paths(shot: &Shot, frame: u32) -> Vec<PathBuf> {
     v
 }
 
-/// `<name>_0001`: the file name of frame number `frame` without its extension.
+/// `<name>_0001`: the file name of frame number `frame` without its extension, the number
+/// zero-padded to `output.padding` digits.
 pub fn frame_stem(shot: &Shot, frame: u32) -> String {
-    format!("{}_{frame:04}", shot.scene().name)
+    let scene = shot.scene();
+    let digits = scene.file.output.padding as usize;
+    format!("{}_{frame:0digits$}", scene.name)
 }
 
 /// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
@@ -55,10 +58,12 @@ pub(crate) struct FrameOutput<'a> {
     pub blobs: &'a [Blob],
     /// Voxel size of the density grids.
     pub voxel: f64,
+    /// The frame's provenance hash ([`super::provenance`]).
+    pub hash: u64,
 }
 
-/// Write one frame's files atomically; the blob dump (if any) is written last. The density
-/// grid is sampled once, if a grid format is asked for.
+/// Write one frame's files atomically; the blob dump (if any), then the manifest, are written
+/// last. The density grid is sampled once, if a grid format is asked for.
 pub(crate) fn write_frame(shot: &Shot, frame: u32, out: &FrameOutput) -> Result<(), SceneError> {
     let scene = shot.scene();
     let FrameOutput {
@@ -66,6 +71,7 @@ pub(crate) fn write_frame(shot: &Shot, frame: u32, out: &FrameOutput) -> Result<
         settings,
         blobs,
         voxel,
+        hash,
     } = *out;
     let paths = frame_paths(shot, frame);
     let io = |path: &Path| {
@@ -86,7 +92,7 @@ pub(crate) fn write_frame(shot: &Shot, frame: u32, out: &FrameOutput) -> Result<
         }
         match format {
             Format::Exr => {
-                let meta = frame_metadata(shot, settings, frame);
+                let meta = frame_metadata(shot, settings, frame, hash);
                 render::output::write_exr_with(path, image, &meta).map_err(io(path))?
             }
             Format::Png => render::output::write_png(path, image, settings).map_err(io(path))?,
@@ -116,16 +122,32 @@ pub(crate) fn write_frame(shot: &Shot, frame: u32, out: &FrameOutput) -> Result<
         let text = blobs_to_ron(blobs);
         crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
     }
+    let record = provenance::FrameRecord {
+        frame,
+        hash: provenance::hash_text(hash),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        output: provenance::output_kind(shot),
+        files: paths
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect(),
+    };
+    let manifest = provenance::manifest_path(shot, frame);
+    crate::atomic::write_bytes_atomically(&manifest, provenance::record_text(&record).as_bytes())
+        .map_err(io(&manifest))?;
     Ok(())
 }
 
-/// The EXR attributes of frame number `frame`: the camera's matrices and the strings
-/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/seed` (the scene's) and
-/// `nephele/version` (the crate's). Nothing depends on the run, so frames stay byte-identical.
+/// The EXR attributes of frame number `frame` with provenance hash `hash`: the camera's
+/// matrices, `chromaticities` of `output.colorspace`, `framesPerSecond`, and the strings
+/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/hash`,
+/// `nephele/colorspace`, `nephele/seed` (the scene's) and `nephele/version` (the crate's).
+/// Nothing depends on the run, so frames stay byte-identical.
 pub fn frame_metadata(
     shot: &Shot,
     settings: &RenderSettings,
     frame: u32,
+    hash: u64,
 ) -> render::output::FrameMetadata {
     let scene = shot.scene();
     let file = scene
@@ -133,13 +155,24 @@ pub fn frame_metadata(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
+    let space = scene.file.output.colorspace;
     let strings = vec![
         ("scene".to_string(), file),
         ("frame".to_string(), frame.to_string()),
+        ("hash".to_string(), provenance::hash_text(hash)),
+        ("colorspace".to_string(), space.name().to_string()),
         ("seed".to_string(), scene.file.seed.to_string()),
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
     ];
-    render::output::FrameMetadata::new(&settings.camera, settings.width, settings.height, strings)
+    let mut meta = render::output::FrameMetadata::new(
+        &settings.camera,
+        settings.width,
+        settings.height,
+        strings,
+    );
+    meta.color_space = space;
+    meta.frames_per_second = Some(render::output::fps_rational(scene.file.shot.fps));
+    meta
 }
 
 /// A frame's blob list as RON (a list of `Blob`s, index = identity).

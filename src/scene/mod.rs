@@ -2,8 +2,9 @@
 //! output settings; and rendering a shot to frame files with resume and frame ranges.
 //!
 //! In: a scene file path. Out: frame files `<dir>/<name>_0001.exr/.png/.vdb/.vol` (and optionally
-//! `<name>_0001.blobs.ron`), written atomically so that a frame whose files all exist is
-//! finished.
+//! `<name>_0001.blobs.ron`), numbered from `shot.start_frame` ([`frames`]), written atomically
+//! with the frame's manifest last, so that a frame whose files and manifest exist is finished,
+//! and up to date when the manifest's hash matches ([`provenance`]).
 //!
 //! Paths: the target (`Model("…")`, `Fit(mesh: "…")`) resolves against the scene file's folder,
 //! so a scene can sit beside its models; the output folder resolves against the current
@@ -13,6 +14,8 @@ pub mod camera;
 pub mod chunk;
 pub mod file;
 pub mod files;
+pub mod frames;
+pub mod provenance;
 pub mod run;
 pub mod shot;
 pub mod stats;

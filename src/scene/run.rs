@@ -1,9 +1,11 @@
-//! Rendering a shot to frame files, resumable: every file is written atomically, so a frame
-//! whose files all exist is finished and is skipped unless `force` is set; the target is not
-//! even loaded (nor fitted) when every requested frame is done.
+//! Rendering a shot to frame files, resumable: every file is written atomically and the
+//! frame's manifest last, so a frame whose files and manifest exist is finished; it is skipped
+//! when its hash matches ([`super::provenance`]) unless `force` is set, and rendered again,
+//! with the reason counted, when it does not.
 
 use std::time::Instant;
 
+use super::provenance::{self, FrameStatus};
 use super::shot::Shot;
 use super::stats::StatsBasis;
 use super::target::TargetOrigin;
@@ -15,9 +17,9 @@ use crate::progress::Timings;
 pub struct FrameReport {
     /// Frame number.
     pub frame: u32,
-    /// Frames in the shot.
+    /// The shot's last frame number.
     pub of: u32,
-    /// True when the frame's files existed and it was skipped.
+    /// True when the frame was up to date and skipped.
     pub skipped: bool,
     /// Seconds spent rendering and writing it (0 when skipped).
     pub seconds: f64,
@@ -30,9 +32,12 @@ pub struct ShotReport {
     pub output_dir: std::path::PathBuf,
     /// Frames rendered.
     pub rendered: u32,
-    /// Frames skipped because they were done.
+    /// Frames skipped because they were done and up to date.
     pub skipped: u32,
-    /// Where the target came from (`None` when every frame was already done).
+    /// Frames on disk rendered again because they were out of date: `(reason, count)`, in the
+    /// order the reasons were first met.
+    pub out_of_date: Vec<(String, u32)>,
+    /// Where the target came from.
     pub target: Option<TargetOrigin>,
     /// Wall time per stage (target, plan, render, write).
     pub timings: Timings,
@@ -55,28 +60,18 @@ impl Shot {
     pub fn run(&self, on_frame: &mut dyn FnMut(&FrameReport)) -> Result<ShotReport, SceneError> {
         let opts = self.options();
         let mut timings = Timings::default();
-        let done =
-            |frame: u32| !opts.force && files::frame_paths(self, frame).iter().all(|p| p.is_file());
-        // Each frame's files are looked for once: (frame, finished).
-        let frames: Vec<(u32, bool)> = self.frames().map(|f| (f, done(f))).collect();
-        // With statistics, finished frames are rendered again in memory (not written).
-        let render_it = |finished: bool| opts.stats || !finished;
         let mut report = ShotReport {
             output_dir: self.dir().to_path_buf(),
             rendered: 0,
             skipped: 0,
+            out_of_date: Vec::new(),
             target: None,
             timings: Timings::default(),
             stats: None,
         };
-        let total = self.total();
-        if !frames.iter().any(|&(_, finished)| render_it(finished)) {
-            for &(frame, _) in &frames {
-                report.skipped += 1;
-                on_frame(&skipped(frame, total));
-            }
-            return Ok(report);
-        }
+        let last = self.number(self.total() - 1);
+        // The hashes need every frame's inputs, so the target is loaded (from its cache when
+        // there is one) even when every frame turns out to be up to date.
         let prep = timings.stage("target and plan", || self.prepared())?;
         report.target = Some(prep.origin.clone());
         let voxel = files::grid_voxel(self)?;
@@ -87,25 +82,39 @@ impl Shot {
         };
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
-        for &(frame, finished) in &frames {
-            if !render_it(finished) {
-                report.skipped += 1;
-                on_frame(&skipped(frame, total));
-                continue;
-            }
+        for &frame in self.frames() {
             let start = Instant::now();
             let k = self.index(frame);
             let blobs = self.blobs(k)?;
             let settings = self.settings(k)?;
+            let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
+            let status = if opts.force {
+                FrameStatus::New
+            } else {
+                provenance::status(self, frame, hash)
+            };
+            let finished = status == FrameStatus::UpToDate;
+            // With statistics, finished frames are rendered again in memory (not written).
+            if finished && !opts.stats {
+                report.skipped += 1;
+                on_frame(&skipped(frame, last));
+                continue;
+            }
+            if let FrameStatus::OutOfDate(reason) = status {
+                match report.out_of_date.iter_mut().find(|(r, _)| *r == reason) {
+                    Some((_, n)) => *n += 1,
+                    None => report.out_of_date.push((reason, 1)),
+                }
+            }
             let image = self.image(k, &settings, &blobs)?;
             let rendered = Instant::now();
-            let write = !finished;
-            if write {
+            if !finished {
                 let out = files::FrameOutput {
                     image: &image,
                     settings: &settings,
                     blobs: &blobs,
                     voxel,
+                    hash,
                 };
                 files::write_frame(self, frame, &out)?;
             }
@@ -116,15 +125,15 @@ impl Shot {
             render_s += (rendered - start).as_secs_f64();
             write_s += (written - rendered).as_secs_f64();
             stats_s += written.elapsed().as_secs_f64();
-            if write {
-                report.rendered += 1;
-            } else {
+            if finished {
                 report.skipped += 1;
+            } else {
+                report.rendered += 1;
             }
             on_frame(&FrameReport {
                 frame,
-                of: total,
-                skipped: !write,
+                of: last,
+                skipped: finished,
                 seconds: start.elapsed().as_secs_f64(),
             });
         }
@@ -138,6 +147,23 @@ impl Shot {
         }
         report.timings = timings;
         Ok(report)
+    }
+}
+
+impl Shot {
+    /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
+    /// with the reason (the run's rule, for `prepare` and the farm).
+    pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
+        let voxel = files::grid_voxel(self)?;
+        self.frames()
+            .iter()
+            .map(|&frame| {
+                let k = self.index(frame);
+                let hash =
+                    provenance::frame_hash(self, k, &self.settings(k)?, &self.blobs(k)?, voxel);
+                Ok((frame, provenance::status(self, frame, hash)))
+            })
+            .collect()
     }
 }
 

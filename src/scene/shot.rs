@@ -3,14 +3,14 @@
 //! render settings, blobs and image of any frame. `render`, `--stats`, `usd`, `prepare` and
 //! `farm` all go through it.
 //!
-//! Frames are numbered from 1; frame number `f` is the shot's 0-based frame `k = f − 1` (its
-//! time is `k / fps`).
+//! Frames are numbered from `shot.start_frame` (default 1): frame number `f` is the shot's
+//! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`super::frames`]).
 
 use std::cell::OnceCell;
-use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use super::camera::camera_at;
+use super::frames::FrameSelection;
 use super::target::{TargetOrigin, load_spec, load_target};
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
@@ -21,8 +21,8 @@ use crate::render::{self, Frame, Quality, RenderSettings};
 /// How to render a shot (the command line's choices).
 #[derive(Clone, Debug, Default)]
 pub struct RenderOptions {
-    /// 1-based inclusive frame range, overriding the scene's `frames`.
-    pub frames: Option<(u32, u32)>,
+    /// Frames to render (frame numbers), overriding the scene's `frames`.
+    pub frames: Option<FrameSelection>,
     /// Output folder overriding the scene's `output.dir`.
     pub output: Option<PathBuf>,
     /// Quarter resolution (at least 64 px wide) with preview quality, in `<dir>/preview/`.
@@ -56,7 +56,8 @@ pub struct Shot {
     options: RenderOptions,
     dir: PathBuf,
     cache_dir: PathBuf,
-    frames: RangeInclusive<u32>,
+    frames: Vec<u32>,
+    start: u32,
     total: u32,
     width: u32,
     height: u32,
@@ -69,17 +70,19 @@ impl Shot {
     /// Nothing is loaded or written yet.
     pub fn open(scene: Scene, options: &RenderOptions) -> Result<Shot, SceneError> {
         let spec = &scene.file.shot;
-        let total = spec.frame_count();
-        let (a, b) = options.frames.or(scene.file.frames).unwrap_or((1, total));
-        if a == 0 || a > b || b > total {
-            return Err(SceneError::Invalid {
+        let (start, last, total) = (spec.start_frame, spec.last_frame(), spec.frame_count());
+        let (selection, field) = match (&options.frames, scene.file.frames) {
+            (Some(sel), _) => (sel.clone(), "--frames"),
+            (None, Some((a, b))) => (FrameSelection::range(a, b), "frames"),
+            (None, None) => (FrameSelection::range(start, last), "frames"),
+        };
+        let frames = selection
+            .resolve(start, last)
+            .map_err(|message| SceneError::Invalid {
                 path: scene.path.clone(),
-                field: "frames".into(),
-                message: format!(
-                    "need 1 ≤ first ≤ last ≤ {total} (the shot's frames), got {a}..{b}"
-                ),
-            });
-        }
+                field: field.into(),
+                message,
+            })?;
         let cache_dir = options
             .output
             .clone()
@@ -97,7 +100,8 @@ impl Shot {
             options: options.clone(),
             dir,
             cache_dir,
-            frames: a..=b,
+            frames,
+            start,
             total,
             width,
             height,
@@ -126,13 +130,13 @@ impl Shot {
         &self.cache_dir
     }
 
-    /// The frame numbers to render.
-    pub fn frames(&self) -> RangeInclusive<u32> {
-        self.frames.clone()
+    /// The frame numbers to render, sorted.
+    pub fn frames(&self) -> &[u32] {
+        &self.frames
     }
 
     /// Render only `frames` (a farm task's chunk of [`Shot::frames`]).
-    pub fn set_frames(&mut self, frames: RangeInclusive<u32>) {
+    pub fn set_frames(&mut self, frames: Vec<u32>) {
         self.frames = frames;
     }
 
@@ -143,12 +147,12 @@ impl Shot {
 
     /// Frame number of the shot's 0-based frame `k`.
     pub fn number(&self, k: u32) -> u32 {
-        k + 1
+        self.start + k
     }
 
-    /// The shot's 0-based frame of frame number `frame`.
+    /// The shot's 0-based frame of frame number `frame` (one of the shot's).
     pub fn index(&self, frame: u32) -> u32 {
-        frame - 1
+        frame - self.start
     }
 
     /// Image width and height in pixels.

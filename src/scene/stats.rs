@@ -6,7 +6,7 @@
 //! - 2D: the rendered alpha from the scene's camera, pixels with alpha > 0.05, 4-connected
 //!   components ([`crate::animate::stats::coverage`]).
 //!
-//! CSV columns: `frame` (1-based), `time_s`, `visible_blobs`, `volume_fraction` (visible cells
+//! CSV columns: `frame` (the frame number), `time_s`, `visible_blobs`, `volume_fraction` (visible cells
 //! over the last frame's), `components_3d`, `largest_3d` (share of the visible cells in the
 //! largest component), `coverage` (fraction of the image's pixels), `components_2d`,
 //! `largest_2d`. The 2D columns are empty for frames whose image was not rendered.
@@ -25,7 +25,7 @@ use crate::render::Frame;
 /// The statistics of one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameStats {
-    /// 1-based frame number.
+    /// Frame number.
     pub frame: u32,
     /// Time of the frame in seconds.
     pub time: f64,
@@ -95,9 +95,10 @@ pub fn shot_stats(
     let shot = Shot::open(scene.clone(), opts)?;
     let basis = StatsBasis::new(&shot)?;
     let frames = shot.frames();
-    let (first, last) = (*frames.start(), *frames.end());
+    let (first, last) = (frames[0], frames[frames.len() - 1]);
     frames
-        .map(|frame| {
+        .iter()
+        .map(|&frame| {
             let k = shot.index(frame);
             let blobs = shot.blobs(k)?;
             let render = alpha_every > 0 && ((frame - first) % alpha_every == 0 || frame == last);

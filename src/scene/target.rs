@@ -116,7 +116,7 @@ pub fn fit_cache_key(identity: &[u8], cfg: &FitConfig) -> u64 {
 
 /// 64-bit FNV-1a over the concatenated parts, each followed by its length (so part boundaries
 /// count). Stable across platforms and versions.
-fn fnv1a(parts: &[&[u8]]) -> u64 {
+pub(crate) fn fnv1a(parts: &[&[u8]]) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |b: u8| {
         h ^= b as u64;

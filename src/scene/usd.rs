@@ -3,8 +3,8 @@
 //! `OpenVDBAsset` fields `density` and `vel` (the velocity grid, so Karma and other Hydra
 //! renderers motion-blur it without set-up) point at the frame VDBs (time-sampled `filePath`).
 //!
-//! Conventions: time code `k` is frame `k` (1-based), `timeCodesPerSecond` = `framesPerSecond` =
-//! the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
+//! Conventions: the time code of a frame is its frame number (from `shot.start_frame`, 1 by
+//! default), `timeCodesPerSecond` = `framesPerSecond` = the shot's fps; `upAxis` Y, `metersPerUnit` 1 (the scene's units are the model's; scale the
 //! stage on import if they are not metres). Matrices are USD's row-vector `matrix4d` (the last
 //! row is the translation). The camera looks down its local −Z with +Y up, as nephele's does;
 //! its lens uses the schema's tenths-of-a-unit convention with a 24-unit vertical aperture:
@@ -29,7 +29,9 @@ pub const VERTICAL_APERTURE: f64 = 24.0;
 pub struct Stage {
     /// Frames per second.
     pub fps: f64,
-    /// The camera of frames `1..=cameras.len()`.
+    /// Frame number (and time code) of the first frame.
+    pub start_frame: u32,
+    /// The camera of frames `start_frame..start_frame + cameras.len()`.
     pub cameras: Vec<CameraFrame>,
     /// Near and far clipping distances.
     pub clipping: [f64; 2],
@@ -61,6 +63,7 @@ pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
         .collect();
     Ok(Stage {
         fps: scene.file.shot.fps,
+        start_frame: shot.number(0),
         cameras,
         clipping: [1e-3 * length, 1e3 * length],
         shutter: scene.file.shot.shutter,
@@ -108,14 +111,15 @@ fn relative_to(path: &Path, base: &Path) -> String {
 
 /// The `.usda` text of `stage`.
 pub fn stage_text(stage: &Stage) -> String {
-    let n = stage.cameras.len().max(1);
+    let first = stage.start_frame as usize;
+    let last = first + stage.cameras.len().max(1) - 1;
     let mut s = String::new();
     let _ = writeln!(s, "#usda 1.0");
     let _ = writeln!(s, "(");
     let _ = writeln!(s, "    defaultPrim = \"shot\"");
     let _ = writeln!(s, "    doc = {}", quoted(&stage.doc));
-    let _ = writeln!(s, "    startTimeCode = 1");
-    let _ = writeln!(s, "    endTimeCode = {n}");
+    let _ = writeln!(s, "    startTimeCode = {first}");
+    let _ = writeln!(s, "    endTimeCode = {last}");
     let _ = writeln!(s, "    timeCodesPerSecond = {}", num(stage.fps));
     let _ = writeln!(s, "    framesPerSecond = {}", num(stage.fps));
     let _ = writeln!(s, "    upAxis = \"Y\"");
@@ -125,7 +129,7 @@ pub fn stage_text(stage: &Stage) -> String {
     camera(&mut s, stage);
     sun(&mut s, &stage.sun);
     sky(&mut s, &stage.sky, &stage.sun);
-    volume(&mut s, &stage.vdb_paths);
+    volume(&mut s, &stage.vdb_paths, first);
     let _ = writeln!(s, "}}");
     s
 }
@@ -170,7 +174,7 @@ fn camera(s: &mut String, stage: &Stage) {
     for (k, c) in stage.cameras.iter().enumerate() {
         // Camera to world: local +X right, +Y up, +Z backward (it looks down −Z).
         let m = matrix([c.right, c.up, -c.forward], c.eye);
-        let _ = writeln!(s, "            {}: {m},", k + 1);
+        let _ = writeln!(s, "            {}: {m},", stage.start_frame as usize + k);
     }
     let _ = writeln!(s, "        }}");
     let _ = writeln!(
@@ -257,7 +261,7 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
 
 /// The cloud: a `Volume` with two fields over the same frame VDBs — `density` (the fog volume)
 /// and `vel` (its velocity grid, world units per second, for motion blur).
-fn volume(s: &mut String, paths: &[String]) {
+fn volume(s: &mut String, paths: &[String], first: usize) {
     let _ = writeln!(s, "    def Volume \"cloud\"\n    {{");
     let _ = writeln!(s, "        rel field:density = </shot/cloud/density>");
     let _ = writeln!(s, "        rel field:vel = </shot/cloud/vel>\n");
@@ -270,7 +274,12 @@ fn volume(s: &mut String, paths: &[String]) {
         }
         let _ = writeln!(s, "            asset filePath.timeSamples = {{");
         for (k, p) in paths.iter().enumerate() {
-            let _ = writeln!(s, "                {}: @{}@,", k + 1, p.replace('@', "%40"));
+            let _ = writeln!(
+                s,
+                "                {}: @{}@,",
+                first + k,
+                p.replace('@', "%40")
+            );
         }
         let _ = writeln!(s, "            }}");
         let _ = writeln!(s, "        }}");

@@ -1,0 +1,442 @@
+//! Frames a compositor and a pipeline can use (issue 23): frame provenance and the resume rule,
+//! frame numbers from `shot.start_frame` end to end (files, `--frames` lists, EXR, USD, farm
+//! chunks, stats), colour metadata and ACEScg, and bad input refused with located errors. The
+//! EXR headers are read with the `exr` crate and, where installed, with OpenImageIO's
+//! `oiiotool --info -v` (Debian `openimageio-tools`; the check says it skipped when absent).
+//! Every scene is the procedural `builtin:cumulus` at a few dozen pixels.
+
+mod exr_support;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use exr::meta::attribute::{AttributeValue, Text};
+
+fn temp_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nephele-frames-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// nephele run in `dir`.
+fn nephele(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_nephele"));
+    c.current_dir(dir);
+    for v in nephele::scene::chunk::ARRAY_INDEX_VARS {
+        c.env_remove(v);
+    }
+    c
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Run `c`, assert it succeeded, return its output text.
+fn run(c: &mut Command) -> String {
+    let o = c.output().unwrap();
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    t
+}
+
+/// Run `c`, assert it failed with exit code 1, return its output text.
+fn fails(c: &mut Command) -> String {
+    let o = c.output().unwrap();
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(!t.contains("panicked"), "{t}");
+    t
+}
+
+/// A cumulus shot (`extra` adds scene fields; the frames go to `dir/out` unless it gives an
+/// `output`) in `dir/NAME.ron`.
+fn write_scene(dir: &Path, name: &str, shot: &str, extra: &str) {
+    let output = if extra.contains("output:") {
+        ""
+    } else {
+        "output: (dir: \"out\"), "
+    };
+    std::fs::write(
+        dir.join(format!("{name}.ron")),
+        format!(
+            "Scene(target: Model(\"builtin:cumulus\"), shot: ({shot}), {output}seed: 3, {extra})"
+        ),
+    )
+    .unwrap();
+}
+
+/// The `nephele/…` and standard text attributes of an EXR.
+fn text_attr(path: &Path, key: &str) -> String {
+    let layer = exr_support::read_first_layer(path);
+    match layer.attributes.other.get(&Text::new_or_panic(key)) {
+        Some(AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("{}: {key}: {other:?}", path.display()),
+    }
+}
+
+/// `oiiotool --info -v PATH`, or `None` (with a message) when OpenImageIO is not installed.
+fn oiiotool_info(path: &Path) -> Option<String> {
+    match Command::new("oiiotool")
+        .args(["--info", "-v"])
+        .arg(path)
+        .output()
+    {
+        Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
+        Ok(o) => panic!("oiiotool failed: {}", text(&o)),
+        Err(e) => {
+            eprintln!("oiiotool check skipped: {e} (install Debian openimageio-tools)");
+            None
+        }
+    }
+}
+
+/// Every channel of an EXR by name.
+fn channels(path: &Path) -> BTreeMap<String, Vec<f32>> {
+    exr_support::read_first_layer(path)
+        .channel_data
+        .list
+        .iter()
+        .map(|c| {
+            let values = match &c.sample_data {
+                exr::prelude::FlatSamples::F32(v) => v.clone(),
+                other => panic!("{}: not f32: {other:?}", c.name),
+            };
+            (c.name.to_string(), values)
+        })
+        .collect()
+}
+
+/// The frame numbers whose manifest is in `dir`, with their hash.
+fn manifests(dir: &Path) -> BTreeMap<u32, String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| {
+            let name = e.unwrap().file_name().to_string_lossy().into_owned();
+            name.ends_with(".manifest.json").then_some(name)
+        })
+        .map(|name| {
+            let v: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(dir.join(&name)).unwrap()).unwrap();
+            (
+                v["frame"].as_u64().unwrap() as u32,
+                v["hash"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_1001_based_shot_agrees_in_files_exr_usd_farm_chunks_and_stats() {
+    let dir = temp_dir("start");
+    write_scene(
+        &dir,
+        "c",
+        "width: 48, height: 27, fps: 6, seconds: 2.0, start_frame: 1001",
+        "output: (dir: \"out\", padding: 5, formats: [Exr, Png]), frames: (1001, 1012)",
+    );
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1001..1002,1012", "--stats"]));
+    assert!(t.contains("3 frames rendered, 0 already done"), "{t}");
+    let out = dir.join("out");
+    for f in ["c_01001", "c_01002", "c_01012"] {
+        for ext in ["exr", "png", "manifest.json"] {
+            assert!(out.join(format!("{f}.{ext}")).is_file(), "{f}.{ext}: {t}");
+        }
+    }
+    assert!(!out.join("c_01003.exr").exists());
+    assert_eq!(text_attr(&out.join("c_01012.exr"), "nephele/frame"), "1012");
+    let csv = std::fs::read_to_string(out.join("c_stats.csv")).unwrap();
+    let rows: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(rows, ["1001", "1002", "1012"]);
+    // The last of 12 frames is 11/6 s into the shot.
+    assert!(
+        csv.lines().last().unwrap().starts_with("1012,1.8333"),
+        "{csv}"
+    );
+
+    // USD: time codes are the frame numbers, each pointing at that frame's VDB file name.
+    run(nephele(&dir).args(["usd", "c.ron", "-o", "out/c.usda"]));
+    let usda = std::fs::read_to_string(out.join("c.usda")).unwrap();
+    for line in [
+        "startTimeCode = 1001",
+        "endTimeCode = 1012",
+        "1001: ( (",
+        "1012: @./c_01012.vdb@",
+    ] {
+        assert!(usda.contains(line), "missing {line:?} in\n{usda}");
+    }
+    assert!(!usda.contains("    1: "), "{usda}");
+
+    // Farm: the chunks are frame numbers, and a task renders its chunk of them.
+    let t = run(nephele(&dir).args([
+        "farm", "c.ron", "--engine", "slurm", "--chunk", "5", "--output", "out",
+    ]));
+    assert!(
+        t.contains("3 tasks of at most 5 frames (frames 1001..1012)"),
+        "{t}"
+    );
+    let script = std::fs::read_to_string(out.join("c.sbatch")).unwrap();
+    assert!(script.contains("'--frames' '1001..1012'"), "{script}");
+    assert!(script.contains("#SBATCH --array=0-2"), "{script}");
+    let t = run(nephele(&dir).args([
+        "render",
+        "c.ron",
+        "--frames",
+        "1001..1012",
+        "--task",
+        "2/3",
+        "--formats",
+        "png",
+    ]));
+    assert!(
+        t.contains("task 2/3: frames 1009..1012 of 1001..1012"),
+        "{t}"
+    );
+    assert!(t.contains("frame 1009/1012"), "{t}");
+    // A list is cut by position.
+    let t = run(nephele(&dir).args([
+        "render",
+        "c.ron",
+        "--frames",
+        "1001,1005..1006,1012",
+        "--task",
+        "1/2",
+        "--formats",
+        "png",
+    ]));
+    assert!(
+        t.contains("task 1/2: frames 1006,1012 of 1001,1005..1006,1012"),
+        "{t}"
+    );
+
+    // Frame numbers outside the shot are refused, naming where they came from.
+    let t = fails(nephele(&dir).args(["render", "c.ron", "--frames", "1..3"]));
+    assert!(
+        t.contains("c.ron: --frames: 1..3: need 1001 ≤ first"),
+        "{t}"
+    );
+    write_scene(
+        &dir,
+        "d",
+        "width: 48, height: 27, fps: 6, seconds: 2.0, start_frame: 1001",
+        "frames: (1, 3)",
+    );
+    let t = fails(nephele(&dir).args(["render", "d.ron"]));
+    assert!(
+        t.contains("d.ron: frames: need 1001 ≤ first ≤ last ≤ 1012"),
+        "{t}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_scene_edit_rerenders_exactly_the_frames_it_changes() {
+    let dir = temp_dir("edit");
+    // A morph whose source holds still for its first 0.5 s and whose target holds for the
+    // last 0.5 s: `stagger` changes only the frames in between.
+    let morph = |stagger: f64| {
+        format!(
+            "animation: Morph((from: Model(\"builtin:cumulus\"), stagger: {stagger}, \
+             lead_seconds: 0.5, hold_seconds: 0.5)), transform: (rotate_deg: (0.0, 60.0, 0.0))"
+        )
+    };
+    let shot = "width: 40, height: 24, fps: 6, seconds: 2.0";
+    write_scene(&dir, "m", shot, &morph(0.4));
+    let out = dir.join("out");
+    let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr"]));
+    assert!(t.contains("12 frames rendered, 0 already done"), "{t}");
+    let before = manifests(&out);
+    let pixels = |f: u32| channels(&out.join(format!("m_{f:04}.exr")));
+    let old: Vec<_> = (1..=12).map(pixels).collect();
+    // Unchanged scene: nothing to do.
+    let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr"]));
+    assert!(t.contains("0 frames rendered, 12 already done"), "{t}");
+
+    write_scene(&dir, "m", shot, &morph(0.8));
+    let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr"]));
+    let after = manifests(&out);
+    let rerendered: Vec<u32> = (1..=12).filter(|f| before[f] != after[f]).collect();
+    let changed: Vec<u32> = (1..=12)
+        .filter(|&f| pixels(f) != old[f as usize - 1])
+        .collect();
+    assert_eq!(rerendered, changed, "{t}");
+    let n = changed.len();
+    assert!((3..12).contains(&n), "{changed:?}");
+    assert!(
+        t.contains(&format!("{n} frames rendered, {} already done", 12 - n)),
+        "{t}"
+    );
+    assert!(
+        t.contains(&format!(
+            "{n} of the rendered frames were out of date: {n} scene changed"
+        )),
+        "{t}"
+    );
+    // A lost file or manifest is redone and said; `--force` redoes everything.
+    std::fs::remove_file(out.join("m_0001.manifest.json")).unwrap();
+    std::fs::remove_file(out.join("m_0012.exr")).unwrap();
+    let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr"]));
+    assert!(t.contains("2 frames rendered, 10 already done"), "{t}");
+    assert!(
+        t.contains("1 no manifest (rendered by an older nephele)") && t.contains("1 files missing"),
+        "{t}"
+    );
+    let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr", "--force"]));
+    assert!(t.contains("12 frames rendered, 0 already done"), "{t}");
+    assert_eq!(
+        manifests(&out),
+        after,
+        "the same scene gives the same hashes"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exr_frames_carry_colour_and_rate_and_acescg_is_the_exact_conversion() {
+    let dir = temp_dir("colour");
+    let shot = "width: 40, height: 24, fps: 23.976, seconds: 0.2";
+    write_scene(
+        &dir,
+        "c",
+        shot,
+        "output: (dir: \"rec\", formats: [Exr, Png])",
+    );
+    write_scene(
+        &dir,
+        "a",
+        shot,
+        "output: (dir: \"aces\", name: \"c\", formats: [Exr, Png], colorspace: ACEScg)",
+    );
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "3"]));
+    run(nephele(&dir).args(["render", "a.ron", "--frames", "3"]));
+    let (rec, aces) = (dir.join("rec/c_0003.exr"), dir.join("aces/c_0003.exr"));
+    let layer = exr_support::read_first_layer(&rec);
+    assert_eq!(layer.attributes.frames_per_second, Some((24000, 1001)));
+    let read_chroma = |p: &Path| {
+        let img = exr::meta::MetaData::read_from_file(p, false).unwrap();
+        let c = img.headers[0].shared_attributes.chromaticities.unwrap();
+        [c.red, c.green, c.blue, c.white].map(|v| [v.0, v.1])
+    };
+    assert_eq!(
+        read_chroma(&rec),
+        [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]]
+    );
+    assert_eq!(
+        read_chroma(&aces),
+        [
+            [0.713, 0.293],
+            [0.165, 0.830],
+            [0.128, 0.044],
+            [0.32168, 0.33767]
+        ]
+    );
+    assert_eq!(text_attr(&aces, "nephele/colorspace"), "ACEScg");
+    // ACEScg = M · Rec.709 with the published matrix; alpha and depth untouched; the PNG (sRGB
+    // display-referred from the renderer's Rec.709) is the same file.
+    let m = [
+        [0.613_097_4, 0.339_523_1, 0.047_379_5],
+        [0.070_193_7, 0.916_353_9, 0.013_452_4],
+        [0.020_615_6, 0.109_569_8, 0.869_814_6],
+    ];
+    let (r, a) = (channels(&rec), channels(&aces));
+    assert_eq!(r["A"], a["A"]);
+    assert_eq!(r["Z"], a["Z"]);
+    let mut lit = 0;
+    for i in 0..r["R"].len() {
+        let src = [r["R"][i], r["G"][i], r["B"][i]].map(f64::from);
+        for (row, name) in m.iter().zip(["R", "G", "B"]) {
+            let want: f64 = row.iter().zip(src).map(|(w, v)| w * v).sum();
+            let got = a[name][i] as f64;
+            assert!(
+                (got - want).abs() <= 1e-5 * want.abs() + 1e-9,
+                "{name}[{i}] {got} vs {want}"
+            );
+        }
+        lit += usize::from(src[1] > 0.01);
+    }
+    assert!(lit > 20, "too few cloud pixels to test ({lit})");
+    assert_eq!(
+        std::fs::read(dir.join("rec/c_0003.png")).unwrap(),
+        std::fs::read(dir.join("aces/c_0003.png")).unwrap()
+    );
+    // Switching the colour space is an output change: the frame is redone and it says so.
+    std::fs::copy(&rec, &aces).unwrap();
+    std::fs::copy(
+        dir.join("rec/c_0003.manifest.json"),
+        dir.join("aces/c_0003.manifest.json"),
+    )
+    .unwrap();
+    let t = run(nephele(&dir).args(["render", "a.ron", "--frames", "3"]));
+    assert!(
+        t.contains("1 output changed (final; Rec709 → final; ACEScg)"),
+        "{t}"
+    );
+    if let Some(info) = oiiotool_info(&aces) {
+        for line in [
+            "chromaticities: 0.713, 0.293, 0.165, 0.83, 0.128, 0.044, 0.32168, 0.33767",
+            "framesPerSecond: 24000/1001",
+            "nephele/colorspace: \"ACEScg\"",
+            "nephele/frame: \"3\"",
+            "nephele/hash: \"",
+            "worldToCamera:",
+        ] {
+            assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_input_is_refused_before_any_work_with_each_cause_once() {
+    let dir = temp_dir("bad");
+    write_scene(&dir, "huge", "fps: 1e9, seconds: 1e9", "");
+    let t = fails(nephele(&dir).args(["render", "huge.ron"]));
+    assert!(
+        t.contains("huge.ron: shot: ") && t.contains("more than the limit of 1000000"),
+        "{t}"
+    );
+    assert!(!dir.join("out").exists(), "nothing is written");
+    for (fields, what) in [
+        (
+            "output: (padding: 0)",
+            "c.ron: output.padding: must be 1 to 10 digits",
+        ),
+        (
+            "shot: (start_frame: 4294967295)",
+            "c.ron: shot.start_frame: 4294967295 + 96 frames",
+        ),
+    ] {
+        std::fs::write(
+            dir.join("c.ron"),
+            format!("Scene(target: Model(\"builtin:cumulus\"), {fields})"),
+        )
+        .unwrap();
+        let t = fails(nephele(&dir).args(["render", "c.ron"]));
+        assert!(t.contains(what), "{t}");
+    }
+    std::fs::write(
+        dir.join("c.ron"),
+        "Scene(\n  target: Model(\"builtin:cumulus\"),\n  output: (colorspace: sRGB),\n)",
+    )
+    .unwrap();
+    let t = fails(nephele(&dir).args(["render", "c.ron"]));
+    assert!(t.contains("c.ron:3:"), "{t}");
+    // Each cause once: the library's message already holds its source.
+    let t = fails(nephele(&dir).args(["fit", "builtin:duk", "-o", "x.ron"]));
+    assert_eq!(t.matches("unknown builtin shape 'duk'").count(), 1, "{t}");
+    let t = fails(nephele(&dir).args(["render", "missing.ron"]));
+    let cause = std::io::Error::from(std::io::ErrorKind::NotFound).to_string();
+    assert!(t.matches("No such file").count() == 1, "{t} ({cause})");
+    assert!(!dir.join("out").exists(), "nothing is written");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
