@@ -116,13 +116,11 @@ pub fn render_frame_blurred(
             .chain(&slices)
             .filter_map(|m| m.bounds())
             .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)));
-        let sun = glam::Vec3A::from(settings.sun.travel_dir());
         slices
             .iter()
             .map(|m| {
-                bounds.map(|(lo, hi)| {
-                    let shape = GridShape::covering(lo, hi, settings.quality.shadow_grid);
-                    LightGrid::build_on(m, shape, sun)
+                bounds.and_then(|bounds| {
+                    LightGrid::for_frame(settings, &Bounded { medium: m, bounds })
                 })
             })
             .collect()
@@ -143,6 +141,53 @@ pub fn render_frame_blurred(
         render_slices(settings, &slices, &lights, shutter.stratum as f32),
         report,
     )
+}
+
+/// A medium reporting wider bounds than its own (every stratum's light grid then spans the same
+/// box, the whole shutter's); all else is the medium's.
+struct Bounded<'a, M> {
+    medium: &'a M,
+    bounds: (glam::Vec3A, glam::Vec3A),
+}
+
+impl<M: Medium> Medium for Bounded<'_, M> {
+    type Scratch = M::Scratch;
+
+    fn scratch(&self) -> Self::Scratch {
+        self.medium.scratch()
+    }
+
+    fn begin_tile(&self, frustum: &super::camera::Frustum, s: &mut Self::Scratch) {
+        self.medium.begin_tile(frustum, s)
+    }
+
+    fn begin_ray(&self, ray: &Ray, s: &mut Self::Scratch) {
+        self.medium.begin_ray(ray, s)
+    }
+
+    fn intervals<'s>(&self, s: &'s Self::Scratch) -> &'s [[f32; 2]] {
+        self.medium.intervals(s)
+    }
+
+    fn extinction(&self, s: &mut Self::Scratch, t: f32, x: glam::Vec3A) -> f32 {
+        self.medium.extinction(s, t, x)
+    }
+
+    fn sample(&self, s: &mut Self::Scratch, t: f32, x: glam::Vec3A) -> (f32, bool) {
+        self.medium.sample(s, t, x)
+    }
+
+    fn bounds(&self) -> Option<(glam::Vec3A, glam::Vec3A)> {
+        Some(self.bounds)
+    }
+
+    fn step(&self) -> f32 {
+        self.medium.step()
+    }
+
+    fn max_extinction(&self) -> f32 {
+        self.medium.max_extinction()
+    }
 }
 
 /// Largest travel of a live blob's centre from the frame within the shutter, in light-grid

@@ -82,6 +82,8 @@ impl Shot {
         };
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
+        // Frames in order: a hold reuses the last frame, a still cloud its light grid.
+        let mut renderer = crate::render::ShotRenderer::new();
         for &frame in self.frames() {
             let start = Instant::now();
             let k = self.index(frame);
@@ -106,11 +108,19 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            let image = self.image(k, &settings, &blobs)?;
+            // Through the open shutter when the cloud moves, else as it stands.
+            let blurred;
+            let image = match self.shutter(k, settings.quality.time_samples)? {
+                Some(shutter) => {
+                    blurred = crate::render::render_frame_blurred(&settings, &blobs, &shutter).0;
+                    &blurred
+                }
+                None => renderer.render(&settings, &blobs),
+            };
             let rendered = Instant::now();
             if !finished {
                 let out = files::FrameOutput {
-                    image: &image,
+                    image,
                     settings: &settings,
                     blobs: &blobs,
                     voxel,
@@ -120,7 +130,7 @@ impl Shot {
             }
             let written = Instant::now();
             if let Some(basis) = &basis {
-                stats.push(basis.frame(frame, &blobs, Some(&image)));
+                stats.push(basis.frame(frame, &blobs, Some(image)));
             }
             render_s += (rendered - start).as_secs_f64();
             write_s += (written - rendered).as_secs_f64();
