@@ -106,7 +106,7 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            let image = crate::render::render_frame(&settings, &blobs);
+            let image = self.render_with(&settings, &blobs);
             let rendered = Instant::now();
             if !finished {
                 let out = files::FrameOutput {
