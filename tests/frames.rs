@@ -487,13 +487,14 @@ fn passes_sum_to_the_beauty_which_keeps_its_bits() {
     }
     let (mut worst, mut lit) = (0.0f64, 0);
     for c in ["R", "G", "B"] {
-        for i in 0..b[c].len() {
-            let sum = [b[&format!("sun.{c}")][i], b[&format!("sky.{c}")][i]]
-                .iter()
-                .chain([&b[&format!("multiple.{c}")][i]])
-                .map(|&v| v as f64)
-                .sum::<f64>();
-            let beauty = b[c][i] as f64;
+        let (sun, sky, ms) = (
+            &b[&format!("sun.{c}")],
+            &b[&format!("sky.{c}")],
+            &b[&format!("multiple.{c}")],
+        );
+        for (i, &beauty) in b[c].iter().enumerate() {
+            let sum = sun[i] as f64 + sky[i] as f64 + ms[i] as f64;
+            let beauty = beauty as f64;
             if beauty > 1e-3 {
                 worst = worst.max((sum - beauty).abs() / beauty);
                 lit += 1;
