@@ -1,7 +1,9 @@
 //! Renderer tests: analytic media against closed forms, determinism across thread counts, the
 //! EXR round trip, and (ignored) the speed benchmark and the look check.
 //!
-//! Benchmark: `cargo test --release --test render -- --ignored --nocapture bench`
+//! Benchmark: `cargo test --release --test render -- --ignored --nocapture bench` (times, bytes
+//! allocated, light-grid nodes); with `--features counters` it also counts the frame's work
+//! (density samples, hits visited, noise stacks, shaded samples; `nephele::render::counters`).
 //! Look:      `cargo test --release --test render -- --ignored --nocapture look` (PNGs in /tmp)
 
 mod exr_support;
@@ -277,8 +279,47 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
     );
 }
 
+/// A shot's renderer gives `render_frame`'s bits in every case of reuse: a hold (the whole
+/// frame), a still cloud seen by a moving camera (the light grid), a changed cloud (buffers).
+#[test]
+fn shot_renderer_matches_render_frame_bit_for_bit() {
+    use nephele::render::{Reuse, ShotRenderer};
+    let a = test_cloud(60, 4);
+    let mut b = a.clone();
+    b[3].center.x += 0.05;
+    let s = settings(48, 27, Quality::preview());
+    let mut moved = s.clone();
+    moved.camera.position.x += 0.2;
+    let mut later = s.clone();
+    later.time = 1.5;
+    let mut renderer = ShotRenderer::new();
+    for (settings, blobs, expect) in [
+        (&s, &a, Reuse::Buffers),
+        (&later, &a, Reuse::Frame),
+        (&moved, &a, Reuse::LightGrid),
+        (&moved, &b, Reuse::Buffers),
+        (&s, &a, Reuse::Buffers),
+    ] {
+        let (frame, reuse) = renderer.render_reporting(settings, blobs);
+        assert_eq!(reuse, expect);
+        assert_eq!(
+            frame_hash(frame),
+            frame_hash(&render_frame(settings, blobs))
+        );
+    }
+    // With evolving noise, time changes the cloud: nothing but buffers is reused.
+    let mut evolving = s.clone();
+    evolving.cloud.noise.evolve = 0.5;
+    let mut evolved = evolving.clone();
+    evolved.time = 1.0;
+    renderer.render(&evolving, &a);
+    let (frame, reuse) = renderer.render_reporting(&evolved, &a);
+    assert_eq!(reuse, Reuse::Buffers);
+    assert_eq!(frame_hash(frame), frame_hash(&render_frame(&evolved, &a)));
+}
+
 /// Hash of the 64×36 frame above (update deliberately when the renderer's output changes).
-const PINNED: u64 = 0x304b_452b_6998_2c17;
+const PINNED: u64 = 0xf5dd_1f0f_532d_9678;
 
 #[test]
 fn exr_reads_back_with_channels_and_values() {
@@ -317,6 +358,94 @@ fn exr_reads_back_with_channels_and_values() {
     let png = image::open(dir.join("f.png")).unwrap();
     assert_eq!((png.width(), png.height()), (40, 24));
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The system allocator, counting the bytes allocated (for the benchmark's "bytes allocated").
+struct CountingAlloc;
+
+static ALLOCATED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+unsafe impl std::alloc::GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        ALLOCATED.fetch_add(layout.size() as u64, std::sync::atomic::Ordering::Relaxed);
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
+        ALLOCATED.fetch_add(layout.size() as u64, std::sync::atomic::Ordering::Relaxed);
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { std::alloc::System.alloc_zeroed(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new: usize) -> *mut u8 {
+        ALLOCATED.fetch_add(new as u64, std::sync::atomic::Ordering::Relaxed);
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { std::alloc::System.realloc(ptr, layout, new) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+/// Bytes allocated while `f` runs (by any thread).
+fn allocated<T>(f: impl FnOnce() -> T) -> (T, u64) {
+    let before = ALLOCATED.load(std::sync::atomic::Ordering::Relaxed);
+    let out = f();
+    (
+        out,
+        ALLOCATED.load(std::sync::atomic::Ordering::Relaxed) - before,
+    )
+}
+
+/// One frame's work counters, printed per frame.
+fn print_work(s: &RenderSettings, blobs: &[Blob]) {
+    use nephele::render::counters;
+    let m = BlobMedium::new(s, blobs);
+    counters::take();
+    let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &m));
+    let light = counters::take();
+    let (_, march_bytes) = allocated(|| render_medium(s, &m, &grid));
+    let march = counters::take();
+    let size = grid.as_ref().map(|g| g.size());
+    let sun_dir = Vec3A::from(s.sun.travel_dir());
+    let h = size.map_or(1.0, |_| {
+        let (lo, hi) = m.bounds().unwrap();
+        (hi - lo).max_element() / s.quality.shadow_grid as f32
+    });
+    let sun_s = median(
+        (0..3)
+            .map(|_| time(|| nephele::render::sun_grid::SunGrid::build(&m, sun_dir, h, None)).1)
+            .collect(),
+    );
+    println!("  of which the sun's columns {sun_s:.3} s");
+    let m = |x: u64| x as f64 / 1e6;
+    println!(
+        "  light grid: {:.2} M world nodes, {:.2} M sun nodes, {:.2} M sky nodes ({:.0} MB kept); {:.0} MB allocated building it, {:.0} MB marching",
+        m(size.map_or(0, |z| z.world) as u64),
+        m(size.map_or(0, |z| z.sun) as u64),
+        m(size.map_or(0, |z| z.sky) as u64),
+        m(size.map_or(0, |z| z.bytes) as u64),
+        m(grid_bytes),
+        m(march_bytes),
+    );
+    if !counters::ENABLED {
+        println!("  (work counters: build with --features counters)");
+        return;
+    }
+    for (part, c) in [("light grid", light), ("march", march)] {
+        let samples = c[0] + c[1];
+        println!(
+            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks, {:.2} M shaded samples",
+            m(samples),
+            c[2] as f64 / samples.max(1) as f64,
+            c[3] as f64 / samples.max(1) as f64,
+            m(c[4]),
+            m(c[5]),
+        );
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -373,6 +502,7 @@ fn bench_frame_times() {
             "{name}: median {total:.3} s/frame = prepare {prep:.3} + light grid {light:.3} + march/density {dens:.3} + shading {:.3} (parts timed separately)",
             march - dens,
         );
+        print_work(&s, &blobs);
     }
 }
 
@@ -733,7 +863,7 @@ fn light_grid_against_exact_march() {
             if !ivs.iter().any(|iv| iv[0] <= 0.0) {
                 continue;
             }
-            let sigma0 = m.extinction(&sc, 0.0, p);
+            let sigma0 = m.extinction(&mut sc, 0.0, p);
             if sigma0 <= 0.0 {
                 continue;
             }
@@ -741,7 +871,7 @@ fn light_grid_against_exact_march() {
             for iv in &ivs {
                 let mut t = iv[0] + 0.5 * step;
                 while t < iv[1] {
-                    tau += m.extinction(&sc, t, ray.at(t)) as f64 * step as f64;
+                    tau += m.extinction(&mut sc, t, ray.at(t)) as f64 * step as f64;
                     t += step;
                 }
             }

@@ -10,6 +10,7 @@ use glam::{Mat3A, Vec3A};
 use rand::RngExt;
 
 use super::camera::{Frustum, Ray, ray_ellipsoid};
+use super::counters::{self, Counter};
 use super::density::{DensityParams, Hit, density};
 use super::medium::Medium;
 use super::noise::Billows;
@@ -43,10 +44,63 @@ pub struct BlobScratch {
     tile: Vec<u32>,
     hits: Vec<Hit>,
     intervals: Vec<[f32; 2]>,
+    /// The hits spanning the last sampled `t`, in `hits`' order (see [`ActiveHits`]).
+    active: ActiveHits,
 }
 
-/// The blob cloud of one frame (live blobs only, SoA, f32).
-#[derive(Clone, Debug)]
+/// The hits of the current ray that span the sample, kept as the ray's samples move forward:
+/// hits enter when the ray reaches their start and are dropped once it has left them, so the
+/// density visits only blobs the sample is in (a ray through a whole cloud had walked over about
+/// 15 ended hits a sample). Same order as the ray's hit list, so the density's sums — and its
+/// bits — are the same as over the whole list. A sample behind the last one starts over.
+#[derive(Debug, Default)]
+struct ActiveHits {
+    list: Vec<Hit>,
+    /// Next hit of the ray's list to enter.
+    next: usize,
+    /// The last sampled `t`.
+    t: f32,
+    /// Smallest exit among `list`: nothing to drop before it.
+    drop_at: f32,
+}
+
+impl ActiveHits {
+    /// Forget the window (a new ray).
+    fn reset(&mut self) {
+        self.list.clear();
+        self.next = 0;
+        self.t = f32::NEG_INFINITY;
+        self.drop_at = f32::INFINITY;
+    }
+
+    /// The hits of `hits` (the ray's list, sorted by entry) with `t0 ≤ t ≤ t1`.
+    #[inline]
+    fn at(&mut self, hits: &[Hit], t: f32) -> &[Hit] {
+        if t < self.t {
+            self.reset();
+        }
+        self.t = t;
+        if t > self.drop_at {
+            self.list.retain(|h| h.t1 >= t);
+            self.drop_at = self.list.iter().fold(f32::INFINITY, |m, h| m.min(h.t1));
+        }
+        while let Some(h) = hits.get(self.next) {
+            if h.t0 > t {
+                break;
+            }
+            if h.t1 >= t {
+                self.list.push(*h);
+                self.drop_at = self.drop_at.min(h.t1);
+            }
+            self.next += 1;
+        }
+        &self.list
+    }
+}
+
+/// The blob cloud of one frame (live blobs only, SoA, f32). Equal media have equal density
+/// everywhere (what a hold's frames reuse, [`super::ShotRenderer`]).
+#[derive(Clone, Debug, PartialEq)]
 pub struct BlobMedium {
     center: Vec<Vec3A>,
     /// `diag(1/(s√(1+A)))·Rᵀ`: world offset → unit-support coordinates.
@@ -245,6 +299,16 @@ impl BlobMedium {
     }
 }
 
+/// Count one density sample and the hits its loop walks over (only with the `counters`
+/// feature; the active window holds no ended hit, so [`Counter::HitsEnded`] stays 0).
+#[inline(always)]
+fn count_sample(kind: Counter, hits: &[Hit]) {
+    if counters::ENABLED {
+        counters::add(kind, 1);
+        counters::add(Counter::HitsVisited, hits.len() as u64);
+    }
+}
+
 impl Medium for BlobMedium {
     type Scratch = BlobScratch;
 
@@ -264,8 +328,10 @@ impl Medium for BlobMedium {
             tile,
             hits,
             intervals,
+            active,
         } = s;
         self.gather(tile, ray, hits, intervals);
+        active.reset();
     }
 
     fn intervals<'s>(&self, s: &'s BlobScratch) -> &'s [[f32; 2]] {
@@ -273,17 +339,38 @@ impl Medium for BlobMedium {
     }
 
     #[inline]
-    fn extinction(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> f32 {
-        self.density(&s.hits, t)
+    fn extinction(&self, s: &mut BlobScratch, t: f32, _x: Vec3A) -> f32 {
+        let hits = s.active.at(&s.hits, t);
+        count_sample(Counter::LightSamples, hits);
+        self.density(hits, t)
     }
 
     #[inline]
-    fn sample(&self, s: &BlobScratch, t: f32, _x: Vec3A) -> (f32, bool) {
-        density(&self.params, &s.hits, t)
+    fn sample(&self, s: &mut BlobScratch, t: f32, _x: Vec3A) -> (f32, bool) {
+        let hits = s.active.at(&s.hits, t);
+        count_sample(Counter::MarchSamples, hits);
+        density(&self.params, hits, t)
     }
 
     fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
         BlobMedium::bounds(self)
+    }
+
+    /// The exact box of the supports in `frame`: an ellipsoid `c + M·u` (`|u| ≤ 1`) reaches
+    /// `|row_r(frame·M)|` from its centre along row `r`.
+    fn bounds_in(&self, frame: Mat3A) -> Option<(Vec3A, Vec3A)> {
+        if self.is_empty() {
+            return None;
+        }
+        let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
+        for (c, unit) in self.center.iter().zip(&self.unit_from_world) {
+            let f = (frame * unit.inverse()).transpose();
+            let half = Vec3A::new(f.x_axis.length(), f.y_axis.length(), f.z_axis.length());
+            let p = frame * *c;
+            lo = lo.min(p - half);
+            hi = hi.max(p + half);
+        }
+        Some((lo, hi))
     }
 
     fn step(&self) -> f32 {
@@ -349,5 +436,62 @@ mod tests {
             sigma.is_finite() && sigma > 0.5 * m.params.sigma,
             "σ_t = {sigma}"
         );
+    }
+
+    #[test]
+    fn active_window_gives_the_full_lists_bits() {
+        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
+        use glam::{DQuat, DVec3};
+        // Overlapping blobs along the ray, some ending early: samples at increasing t (and
+        // steps back, as the march's re-march takes) through the window equal the full list's.
+        let blobs: Vec<Blob> = (0..12)
+            .map(|i| Blob {
+                center: DVec3::new(0.05 * i as f64, 0.02 * (i % 3) as f64, 0.3 * i as f64),
+                rotation: DQuat::from_rotation_y(0.3 * i as f64),
+                semi_axes: DVec3::new(0.4, 0.3, 0.2 + 0.05 * (i % 4) as f64),
+                a: 1.0,
+                b: 2.0,
+            })
+            .collect();
+        let settings = RenderSettings {
+            width: 8,
+            height: 8,
+            camera: Camera {
+                position: glam::Vec3::new(0.0, 0.0, -5.0),
+                look_at: glam::Vec3::ZERO,
+                up: glam::Vec3::Y,
+                fov_deg: 40.0,
+            },
+            sun: Sun::default(),
+            sky: Sky::default(),
+            cloud: CloudMaterial::default(),
+            exposure: 0.0,
+            length_scale: 4.0,
+            seed: 1,
+            time: 0.0,
+            quality: Quality::final_frame(),
+        };
+        let m = BlobMedium::new(&settings, &blobs);
+        let ray = Ray {
+            origin: Vec3A::new(0.0, 0.0, -1.0),
+            dir: Vec3A::Z,
+        };
+        let mut s = m.scratch();
+        let all: Vec<u32> = (0..m.len() as u32).collect();
+        s.tile = all;
+        m.begin_ray(&ray, &mut s);
+        let full = s.hits.clone();
+        let mut positive = 0;
+        for t in (0..400)
+            .map(|k| 0.013 * k as f32)
+            .chain([0.5, 0.7, 2.0, 1.0, 3.0])
+        {
+            let window = m.sample(&mut s, t, ray.at(t));
+            let exact = density(&m.params, &full, t);
+            assert_eq!(window.0.to_bits(), exact.0.to_bits(), "t = {t}");
+            assert_eq!(window.1, exact.1);
+            positive += (exact.0 > 0.0) as u32;
+        }
+        assert!(positive > 50, "the ray crosses the cloud ({positive})");
     }
 }

@@ -70,7 +70,7 @@ pub(super) struct Hit {
 pub(super) const MAX_CUT: f32 = 0.35;
 
 /// Density parameters, already in world units.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct DensityParams {
     /// Extinction inside the cloud, per world unit.
     pub(super) sigma: f32,
@@ -202,6 +202,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
+                super::counters::add(super::counters::Counter::NoiseEvals, 1);
                 sum += w * p.billows.displacement(h.no + h.nd * t, depths, octaves);
                 w2 += w * w;
             }

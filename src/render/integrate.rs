@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use super::Frame;
 use super::camera::{CameraRays, Ray};
+use super::counters::{self, Counter};
 use super::lights::{Lights, Unshadowed};
 use super::medium::Medium;
 use super::settings::RenderSettings;
@@ -218,7 +219,6 @@ fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
     optical_step: f32,
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
-    let scratch = &*scratch;
     let weights = SHADE.then(|| shading.ray_weights(ray.dir));
     let coarse = medium.step().max(1e-9);
     // Fine steps keep the light each one absorbs, `T·(1 − e^{−σh})`, near `optical_step`: thin
@@ -231,7 +231,8 @@ fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
     let (mut t_acc, mut rgb, mut depth_sum, mut tau) = (1.0f32, Vec3A::ZERO, 0.0f32, 0.0f32);
     let mut budget = MAX_STEPS;
     let mut passes = [Vec3A::ZERO; 3];
-    'intervals: for &[a, b] in medium.intervals(scratch) {
+    'intervals: for n in 0..medium.intervals(scratch).len() {
+        let [a, b] = medium.intervals(scratch)[n];
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
         let (mut s, mut h, mut in_medium, mut empty_run, mut last_empty) =
             (a, coarse, false, 0.0f32, a);
@@ -270,6 +271,7 @@ fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());
             if let Some(w) = &weights {
+                counters::add(Counter::ShadedSamples, 1);
                 let depths = lights.depths(x);
                 let light = shading.in_scattered(w, &depths);
                 let k = absorbed * shading.albedo;

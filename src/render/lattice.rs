@@ -19,7 +19,7 @@ use super::medium::Medium;
 
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct GridShape {
     /// Position of node (0, 0, 0).
     pub origin: Vec3A,

@@ -3,28 +3,29 @@
 //! ([`super::sky_light`]) on the nodes of regular grids over the cloud, so shading a march
 //! sample costs one trilinear lookup instead of secondary marches.
 //!
-//! In: any [`Medium`] (its extinction sampled on the grid nodes through the medium's own rays,
-//! [`super::lattice`]) and the sun direction. Out: [`LightGrid`], a [`Lights`] — the depths
+//! In: any [`Medium`] and the sun direction. Out: [`LightGrid`], a [`Lights`] — the depths
 //! anywhere (clamped to the grid). The grid may light the march through another medium than
 //! the one it was built from (motion blur: one grid at the frame's time).
+//!
+//! The medium is sampled once, along the sun grid's light columns (through the medium's own
+//! rays, [`super::lattice`]: only inside its intervals); the sky's coarse world grid takes its
+//! extinction from those samples, prefiltered. Buffers can be handed on from frame to frame
+//! ([`LightGrid::build_reusing`]).
 //!
 //! Each sky depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
 //! fractional offset is the same for every node) plus the trapezoid of `σ_t` over the step.
 //! The repeated bilinear interpolation blurs shadows by about a cell, which suits clouds.
 
-use glam::{DVec3, Vec3A};
+use glam::Vec3A;
 use rayon::prelude::*;
 
-use super::lattice::{Columns, GridShape, sample_bundle, trilinear};
+use super::lattice::{GridShape, trilinear};
 use super::lights::{LightDepths, Lights};
 use super::medium::Medium;
 use super::settings::RenderSettings;
 use super::sky_light::{SKY_DIRECTIONS, directions};
 use super::sun_grid::SunGrid;
-
-/// Rows (along +x) per bundle when the extinction is sampled: one cull per bundle.
-const BUNDLE_ROWS: usize = 8;
 
 /// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
 /// toward each sky cell on a grid of twice the spacing (sky light comes from a broad source: its
@@ -37,6 +38,34 @@ pub struct LightGrid {
     sky_inv_h: f32,
     /// [`SKY_DIRECTIONS`] depths per coarse node, node-major.
     sky: Vec<f32>,
+    /// Nodes of the world grid the sky's is twice as coarse as.
+    world_nodes: usize,
+    /// Working buffers of the sky's build, kept for the next frame's.
+    work: SkyWork,
+}
+
+/// The sky build's working buffers: the coarse grid's extinction and one depth buffer per sweep
+/// running at once.
+#[derive(Clone, Debug, Default)]
+struct SkyWork {
+    coarse: Vec<f32>,
+    sweeps: Vec<Vec<f32>>,
+}
+
+/// Sky sweeps whose buffers exist at once (the rest wait): bounds the build's peak memory.
+const SWEEPS_AT_ONCE: usize = 7;
+
+/// What a light grid holds, for the benchmark's work counters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightGridSize {
+    /// Nodes of the world grid at the light grid's spacing (the sky's is twice as coarse).
+    pub world: usize,
+    /// Nodes of the sun's grid.
+    pub sun: usize,
+    /// Nodes of the sky's grid (each with [`SKY_DIRECTIONS`] depths).
+    pub sky: usize,
+    /// Bytes the grid keeps (depths and working buffers).
+    pub bytes: usize,
 }
 
 impl LightGrid {
@@ -44,50 +73,68 @@ impl LightGrid {
     /// `settings.quality.shadow_grid` cells on the longest side. `None` when the medium is
     /// empty.
     pub fn for_frame<M: Medium>(settings: &RenderSettings, medium: &M) -> Option<LightGrid> {
-        let sun = Vec3A::from(settings.sun.travel_dir());
-        LightGrid::build(medium, sun, settings.quality.shadow_grid)
+        LightGrid::for_frame_reusing(settings, medium, None)
     }
 
-    /// Sample `medium`'s extinction on a grid of about `res` cells on the longest side of its
-    /// bounds and sweep the depths for sunlight travelling along `sun_dir` (unit). `None` when
-    /// the medium has no bounds (empty or unbounded).
+    /// [`LightGrid::for_frame`], reusing the buffers of `previous` (a shot's last grid).
+    pub fn for_frame_reusing<M: Medium>(
+        settings: &RenderSettings,
+        medium: &M,
+        previous: Option<LightGrid>,
+    ) -> Option<LightGrid> {
+        let sun = Vec3A::from(settings.sun.travel_dir());
+        LightGrid::build_reusing(medium, sun, settings.quality.shadow_grid, previous)
+    }
+
+    /// Light grid for sunlight travelling along `sun_dir` (unit) through `medium`, about `res`
+    /// cells on the longest side of its bounds. `None` when the medium has no bounds (empty or
+    /// unbounded).
     pub fn build<M: Medium>(medium: &M, sun_dir: Vec3A, res: u32) -> Option<LightGrid> {
+        LightGrid::build_reusing(medium, sun_dir, res, None)
+    }
+
+    /// [`LightGrid::build`], reusing the buffers of `previous`: a shot does not allocate and
+    /// zero a few hundred megabytes every frame.
+    ///
+    /// The sun's depths are summed along light columns straight from the medium ([`SunGrid`]);
+    /// the sky's are swept through a world grid of twice the spacing whose extinction is the
+    /// sun grid's samples, prefiltered: the medium is sampled once per frame.
+    pub fn build_reusing<M: Medium>(
+        medium: &M,
+        sun_dir: Vec3A,
+        res: u32,
+        previous: Option<LightGrid>,
+    ) -> Option<LightGrid> {
         let (lo, hi) = medium.bounds()?;
         let shape = GridShape::covering(lo, hi, res);
-        let sigma = sample_nodes(medium, &shape);
-        Some(LightGrid::from_extinction(shape, &sigma, sun_dir))
-    }
-
-    /// Sweep the depths from `sigma` (extinction per node, `shape.len()` values) for sunlight
-    /// travelling along `sun_dir` (unit) and the sky cells of [`directions`]; the sweeps run in
-    /// parallel.
-    pub fn from_extinction(shape: GridShape, sigma: &[f32], sun_dir: Vec3A) -> LightGrid {
-        assert_eq!(sigma.len(), shape.len(), "one extinction value per node");
-        let (sky_shape, sky_sigma) = coarsen(&shape, sigma);
-        let dirs = directions();
-        // Light from a sky cell travels from the cell's direction.
-        let (sun, sweeps) = rayon::join(
-            || SunGrid::build(&shape, sigma, sun_dir),
-            || {
-                (0..SKY_DIRECTIONS)
-                    .into_par_iter()
-                    .map(|c| sweep(&sky_shape, &sky_sigma, -dirs[c]))
-                    .collect::<Vec<Vec<f32>>>()
-            },
-        );
-        let mut sky = vec![0.0f32; sky_shape.len() * SKY_DIRECTIONS];
-        sky.par_chunks_mut(SKY_DIRECTIONS)
-            .enumerate()
-            .for_each(|(node, out)| {
-                for (o, depths) in out.iter_mut().zip(&sweeps) {
-                    *o = depths[node];
-                }
-            });
-        LightGrid {
+        let (old_sun, mut sky, mut work) = match previous {
+            Some(g) => (Some(g.sun), g.sky, g.work),
+            None => (None, Vec::new(), SkyWork::default()),
+        };
+        let sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
+        let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
+        Some(LightGrid {
             sun,
             sky_inv_h: 1.0 / sky_shape.h,
             sky_shape,
             sky,
+            world_nodes: shape.len(),
+            work,
+        })
+    }
+
+    /// Node counts and memory.
+    pub fn size(&self) -> LightGridSize {
+        LightGridSize {
+            world: self.world_nodes,
+            sun: self.sun.len(),
+            sky: self.sky_shape.len(),
+            bytes: (self.sun.len() * 2
+                + self.sky.len()
+                + self.sun.len()
+                + self.work.coarse.len()
+                + self.work.sweeps.iter().map(Vec::len).sum::<usize>())
+                * std::mem::size_of::<f32>(),
         }
     }
 
@@ -113,59 +160,47 @@ impl Lights for LightGrid {
     }
 }
 
-/// `medium`'s extinction on the nodes of `shape` (flat index `i + nx·(j + ny·k)`): each row
-/// along +x is a ray from its first node, evaluated at the nodes inside its intervals (0
-/// elsewhere); slices of constant `k` run in parallel, in bundles of [`BUNDLE_ROWS`] rows.
-fn sample_nodes<M: Medium>(medium: &M, shape: &GridShape) -> Vec<f32> {
-    let [nx, ny, _] = shape.dims;
-    let h = shape.h;
-    let columns = Columns {
-        start: shape.origin.as_dvec3(),
-        u: DVec3::Y,
-        v: DVec3::Z,
-        dir: DVec3::X,
-        h: h as f64,
-        length: (h * (nx - 1) as f32) as f64,
-    };
-    let mut sigma = vec![0.0f32; shape.len()];
-    sigma.par_chunks_mut(nx * ny).enumerate().for_each_init(
-        || medium.scratch(),
-        |scratch, (k, slice)| {
-            for j0 in (0..ny).step_by(BUNDLE_ROWS) {
-                let rows = j0..(j0 + BUNDLE_ROWS).min(ny);
-                let ray = |j: usize, k: usize| super::camera::Ray {
-                    origin: shape.node(0, j, k),
-                    dir: Vec3A::X,
-                };
-                sample_bundle(
-                    medium,
-                    scratch,
-                    &columns,
-                    rows,
-                    k..k + 1,
-                    ray,
-                    |s, j, _, ray| {
-                        let row = &mut slice[j * nx..(j + 1) * nx];
-                        for iv in medium.intervals(s) {
-                            let first = (iv[0] / h).ceil() as usize;
-                            let last = ((iv[1] / h).floor() as usize).min(nx - 1);
-                            for (i, v) in row.iter_mut().enumerate().take(last + 1).skip(first) {
-                                let t = i as f32 * h;
-                                *v = medium.extinction(s, t, ray.at(t));
-                            }
-                        }
-                    },
-                );
-            }
-        },
-    );
-    sigma
+/// The sky's depths over the world grid `shape` coarsened to twice the spacing (its extinction
+/// from the sun grid's samples): one sweep per sky cell, node-major into `sky`. Returns the
+/// coarse grid.
+fn sky_depths(
+    shape: &GridShape,
+    sun: &SunGrid,
+    work: &mut SkyWork,
+    sky: &mut Vec<f32>,
+) -> GridShape {
+    let sky_shape = coarse_extinction(shape, sun, &mut work.coarse);
+    let n = sky_shape.len();
+    // Every value is written below: no clearing.
+    sky.resize(n * SKY_DIRECTIONS, 0.0);
+    sky.truncate(n * SKY_DIRECTIONS);
+    work.sweeps.resize(SWEEPS_AT_ONCE, Vec::new());
+    let dirs = directions();
+    let cells: Vec<usize> = (0..SKY_DIRECTIONS).collect();
+    for batch in cells.chunks(SWEEPS_AT_ONCE) {
+        // Light from a sky cell travels from the cell's direction.
+        let coarse = &work.coarse;
+        work.sweeps
+            .par_iter_mut()
+            .zip(batch)
+            .for_each(|(tau, &c)| sweep(&sky_shape, coarse, -dirs[c], tau));
+        let sweeps = &work.sweeps[..batch.len()];
+        sky.par_chunks_mut(SKY_DIRECTIONS)
+            .enumerate()
+            .for_each(|(node, out)| {
+                for (&c, depths) in batch.iter().zip(sweeps) {
+                    out[c] = depths[node];
+                }
+            });
+    }
+    sky_shape
 }
 
-/// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`),
-/// with each coarse node's extinction the mean of the fine nodes within half a coarse cell
-/// (weights ½, 1, ½ per axis), so optical depths through it keep their value.
-fn coarsen(shape: &GridShape, sigma: &[f32]) -> (GridShape, Vec<f32>) {
+/// The grid of twice `shape`'s spacing over the same origin (node `n` at fine node `2n`), with
+/// each node's extinction the sun grid's prefiltered samples ([`SunGrid::coarse_extinction`],
+/// about a coarse cell wide, so optical depths through the coarse grid keep their value), into
+/// `out`.
+fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> GridShape {
     let [nx, ny, nz] = shape.dims;
     let dims = [nx.div_ceil(2) + 1, ny.div_ceil(2) + 1, nz.div_ceil(2) + 1];
     let coarse = GridShape {
@@ -173,46 +208,27 @@ fn coarsen(shape: &GridShape, sigma: &[f32]) -> (GridShape, Vec<f32>) {
         h: 2.0 * shape.h,
         dims,
     };
-    let mut out = vec![0.0f32; coarse.len()];
+    // Every value is written: no clearing.
+    out.resize(coarse.len(), 0.0);
+    out.truncate(coarse.len());
     out.par_chunks_mut(dims[0] * dims[1])
         .enumerate()
         .for_each(|(k, slice)| {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
-                    for dk in -1i64..=1 {
-                        for dj in -1i64..=1 {
-                            for di in -1i64..=1 {
-                                let (fi, fj, fk) =
-                                    (2 * i as i64 + di, 2 * j as i64 + dj, 2 * k as i64 + dk);
-                                if fi < 0 || fj < 0 || fk < 0 {
-                                    continue;
-                                }
-                                let (fi, fj, fk) = (fi as usize, fj as usize, fk as usize);
-                                if fi >= nx || fj >= ny || fk >= nz {
-                                    continue;
-                                }
-                                let w = [di, dj, dk]
-                                    .iter()
-                                    .map(|&d| if d == 0 { 1.0 } else { 0.5 })
-                                    .product::<f32>();
-                                sum += w * sigma[fi + nx * (fj + ny * fk)];
-                                wsum += w;
-                            }
-                        }
-                    }
-                    slice[i + dims[0] * j] = sum / wsum.max(1e-12);
+                    slice[i + dims[0] * j] = sun.coarse_extinction(coarse.node(i, j, k));
                 }
             }
         });
-    (coarse, out)
+    coarse
 }
 
 /// Shift of the stored sky depths toward the light, in cells of the sky grid (see [`sweep`]).
 pub const SURFACE_SHIFT: f32 = 1.0;
 
-/// Optical depth from every node toward the light (light travelling along unit `dir`).
-fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
+/// Optical depth from every node toward the light (light travelling along unit `dir`), into
+/// `tau`.
+fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, tau: &mut Vec<f32>) {
     let d = [dir.x, dir.y, dir.z];
     // k: the axis the light moves along fastest; a, b: the other two.
     let k = (0..3)
@@ -233,7 +249,9 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     let n = shape.dims;
     let stride = [1, n[0], n[0] * n[1]];
     let forward = d[k] > 0.0;
-    let mut tau = vec![0.0f32; sigma.len()];
+    // Every node is written, slice by slice toward the light's travel: no clearing.
+    tau.resize(sigma.len(), 0.0);
+    tau.truncate(sigma.len());
     for step in 0..n[k] {
         let ik = if forward { step } else { n[k] - 1 - step };
         let prev = if forward {
@@ -303,7 +321,6 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A) -> Vec<f32> {
     for (t, &s) in tau.iter_mut().zip(sigma) {
         *t = (*t - SURFACE_SHIFT * s * shape.h).max(0.0);
     }
-    tau
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@
 //! (not an enum) only so that the integrator is monomorphised per medium with no dispatch in the
 //! per-sample loop; outside code is not expected to add media.
 
-use glam::Vec3A;
+use glam::{Mat3A, Vec3A};
 
 use super::camera::{Frustum, Ray, ray_ellipsoid};
 
@@ -38,14 +38,16 @@ pub trait Medium: Sync {
     fn intervals<'s>(&self, scratch: &'s Self::Scratch) -> &'s [[f32; 2]];
 
     /// Extinction `σ_t ≥ 0` (per unit length) at `x = ray.at(t)`, `t` inside the intervals.
-    fn extinction(&self, scratch: &Self::Scratch, t: f32, x: Vec3A) -> f32;
+    /// Cheapest when a ray's `t` grow from call to call (a medium may drop what the ray has
+    /// left); any order is correct.
+    fn extinction(&self, scratch: &mut Self::Scratch, t: f32, x: Vec3A) -> f32;
 
     /// Extinction at `t` and whether `x` lies inside the medium's shape even where the
     /// extinction is zero (e.g. an eroded crease inside a cloud). The integrator marches finely
     /// from the first such point, so thin structures between coarse samples are not skipped.
     /// Default: inside exactly where the extinction is positive.
     #[inline]
-    fn sample(&self, scratch: &Self::Scratch, t: f32, x: Vec3A) -> (f32, bool) {
+    fn sample(&self, scratch: &mut Self::Scratch, t: f32, x: Vec3A) -> (f32, bool) {
         let sigma = self.extinction(scratch, t, x);
         (sigma, sigma > 0.0)
     }
@@ -53,6 +55,25 @@ pub trait Medium: Sync {
     /// A box `(lo, hi)` outside which the extinction is zero; `None` when the medium is empty
     /// or unbounded.
     fn bounds(&self) -> Option<(Vec3A, Vec3A)>;
+
+    /// A box outside which the extinction is zero, in the rotated coordinates `frame · x`
+    /// (`frame` a rotation); `None` as for [`Medium::bounds`]. Default: the box of
+    /// [`Medium::bounds`]' rotated corners; a medium may give a tighter one.
+    fn bounds_in(&self, frame: Mat3A) -> Option<(Vec3A, Vec3A)> {
+        let (lo, hi) = self.bounds()?;
+        let (mut a, mut b) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
+        for c in 0..8 {
+            let corner = Vec3A::select(
+                glam::BVec3A::new(c & 1 != 0, c & 2 != 0, c & 4 != 0),
+                hi,
+                lo,
+            );
+            let p = frame * corner;
+            a = a.min(p);
+            b = b.max(p);
+        }
+        Some((a, b))
+    }
 
     /// Coarse march step through empty parts of the intervals (world units).
     fn step(&self) -> f32;
@@ -143,7 +164,7 @@ impl Medium for Homogeneous {
         scratch
     }
 
-    fn extinction(&self, _: &Self::Scratch, _: f32, _: Vec3A) -> f32 {
+    fn extinction(&self, _: &mut Self::Scratch, _: f32, _: Vec3A) -> f32 {
         self.sigma_t
     }
 

@@ -12,10 +12,10 @@ use super::settings::{Quality, QualityPreset};
 /// channel copies and encoding (40), rounded up.
 pub const BYTES_PER_PIXEL: u64 = 100;
 
-/// Bytes per node of the light grid: extinction (4), the sun's light-aligned grid (depth and
-/// transmittance on up to 1.7× as many nodes: 14), an eighth of a coarse sky node (extinction
-/// and 26 depths, twice while sweeping: 212 / 8), rounded up.
-pub const BYTES_PER_GRID_NODE: u64 = 48;
+/// Bytes per node of the light grid: the sun's light-aligned grid over the supports' light-space
+/// box (depth, transmittance and extinction on up to 1.7× as many nodes: 21), an eighth of a
+/// coarse sky node (extinction, 26 depths and up to 7 sweep buffers: 136 / 8), rounded up.
+pub const BYTES_PER_GRID_NODE: u64 = 40;
 
 /// Estimated peak bytes to render and write one `width × height` frame at `quality`.
 pub fn frame_bytes(width: u32, height: u32, quality: &Quality) -> u64 {

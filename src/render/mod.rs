@@ -30,6 +30,7 @@
 pub mod blobs;
 pub mod camera;
 pub mod color;
+pub mod counters;
 pub mod density;
 pub mod integrate;
 pub mod lattice;
@@ -42,6 +43,7 @@ pub mod output;
 pub mod phase;
 pub mod settings;
 pub mod shading;
+pub mod shot_renderer;
 pub mod sky;
 pub mod sky_light;
 pub mod sun_grid;
@@ -56,6 +58,7 @@ pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
 pub use shading::{InScattered, Shading};
+pub use shot_renderer::{Reuse, ShotRenderer};
 pub use sky::SkyDome;
 
 use crate::blobby::Blob;

@@ -116,7 +116,7 @@ const FADE_IN: (f32, f32) = (0.2, 0.6);
 /// The displacement at noise point `p` (octave 0 has unit wavelength there) of a part with
 /// feature size `F` is `D = Σ_k a·λ_k·s(F/λ_k)·(billow_k − CREASE)` (world units, positive =
 /// outward), `s` a smoothstep over [`FADE_IN`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Billows {
     n: usize,
     /// World wavelength of each octave.

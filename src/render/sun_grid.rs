@@ -1,104 +1,162 @@
-//! Optical depth toward the sun on a grid aligned with the sunlight, so each depth is a plain
-//! running sum along one grid axis.
+//! Optical depth toward the sun on a grid aligned with the sunlight, built column by column:
+//! each column of the grid is a ray toward the sun through the medium, its extinction evaluated
+//! only at the nodes inside the ray's intervals and summed along it (deep shadow maps, Lokovic &
+//! Veach 2000: one transmittance function per light column).
 //!
 //! A sweep through a world-aligned grid resamples the previous slice bilinearly at every step;
 //! over a hundred slices that blurs the depth sideways by several cells, which dims a backlit
 //! cloud's bright rim (the silver lining comes from light grazing its thin edge) and softens
-//! shadow edges. In light space nothing is resampled along the way: the extinction is sampled
-//! once per node (trilinearly from the world grid) and summed along the light.
+//! shadow edges. In light space nothing is resampled: the extinction is sampled once per node,
+//! straight from the medium, and summed along the light.
 //!
-//! In: the world grid's extinction and the sun's direction. Out: [`SunGrid::lookup`] → depth and
-//! transmittance toward the sun anywhere (trilinear in light space).
+//! The grid covers the light-space box of the medium ([`Medium::bounds_in`]; for the blobs the
+//! exact box of their supports) padded by one node: past the cloud a column's depth is constant,
+//! and the columns outside the cloud are 0.
+//!
+//! In: a [`Medium`], the sun's direction, the node spacing. Out: [`SunGrid::lookup`] → depth and
+//! transmittance toward the sun anywhere (trilinear in light space, clamped to the grid).
 
 use glam::{Mat3A, Vec3A};
 use rayon::prelude::*;
 
-use super::lattice::{GridShape, trilinear};
+use super::camera::Ray;
+use super::lattice::{Columns, GridShape, sample_bundle, trilinear};
+use super::medium::Medium;
+
+/// Columns per bundle (one cull each) along the grid's second axis.
+const BUNDLE_COLUMNS: usize = 8;
 
 /// Depth and transmittance toward the sun on a light-aligned grid.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct SunGrid {
-    /// World → light coordinates (rows: across, along the light, across).
+    /// World → light coordinates (rows: along the light, across, across).
     to_light: Mat3A,
-    /// Node grid in light coordinates; the light travels along its `y` axis.
+    /// Node grid in light coordinates; the light travels along its `x` axis, so a column is a
+    /// contiguous run of nodes.
     shape: GridShape,
     inv_h: f32,
     /// `[τ, e^{−τ}]` per node.
     values: Vec<f32>,
+    /// The extinction per node (what the columns sampled), blurred by `[¼ ½ ¼]` along each
+    /// axis: the prefilter of the sky's coarse grid ([`SunGrid::coarse_extinction`]).
+    sigma: Vec<f32>,
+}
+
+/// World → light rotation for sunlight travelling along `sun_dir` (rows: along the light, then
+/// two directions across it).
+pub fn light_frame(sun_dir: Vec3A) -> Mat3A {
+    let along = sun_dir.normalize_or(Vec3A::NEG_Y);
+    let helper = if along.x.abs() < 0.9 {
+        Vec3A::X
+    } else {
+        Vec3A::Z
+    };
+    let across = along.cross(helper).normalize();
+    let across2 = across.cross(along);
+    Mat3A::from_cols(along, across, across2).transpose()
 }
 
 impl SunGrid {
-    /// Sum the extinction `sigma` of the world grid `world` along `sun_dir` (unit, the way the
-    /// light travels) on a light-aligned grid of the same spacing covering it.
-    pub fn build(world: &GridShape, sigma: &[f32], sun_dir: Vec3A) -> SunGrid {
-        let along = sun_dir.normalize_or(Vec3A::NEG_Y);
-        let helper = if along.x.abs() < 0.9 {
-            Vec3A::X
-        } else {
-            Vec3A::Z
-        };
-        let across = along.cross(helper).normalize();
-        let across2 = across.cross(along);
-        let to_light = Mat3A::from_cols(across, along, across2).transpose();
-        // The world grid's box in light coordinates.
-        let h = world.h;
-        let size = Vec3A::new(
-            (world.dims[0] - 1) as f32,
-            (world.dims[1] - 1) as f32,
-            (world.dims[2] - 1) as f32,
-        ) * h;
-        let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
-        for c in 0..8 {
-            let corner = world.origin
-                + Vec3A::new(
-                    if c & 1 == 0 { 0.0 } else { size.x },
-                    if c & 2 == 0 { 0.0 } else { size.y },
-                    if c & 4 == 0 { 0.0 } else { size.z },
-                );
-            let l = to_light * corner;
-            lo = lo.min(l);
-            hi = hi.max(l);
-        }
-        let n = |s: f32| (s / h).ceil() as usize + 1;
+    /// Sum `medium`'s extinction along `sun_dir` (unit, the way the light travels) on a
+    /// light-aligned grid of spacing `h` over the medium's light-space box. `None` when the
+    /// medium is empty. `reuse` lends its buffer (a previous frame's grid), so a shot does not
+    /// allocate and zero a new one every frame.
+    pub fn build<M: Medium>(
+        medium: &M,
+        sun_dir: Vec3A,
+        h: f32,
+        reuse: Option<SunGrid>,
+    ) -> Option<SunGrid> {
+        let to_light = light_frame(sun_dir);
+        let (lo, hi) = medium.bounds_in(to_light)?;
+        let n = |s: f32| (s / h).ceil() as usize + 3;
+        let size = (hi - lo).max(Vec3A::ZERO);
         let shape = GridShape {
-            origin: lo,
+            origin: lo - Vec3A::splat(h),
             h,
-            dims: [n(hi.x - lo.x), n(hi.y - lo.y), n(hi.z - lo.z)],
+            dims: [n(size.x), n(size.y), n(size.z)],
         };
         let [nx, ny, _] = shape.dims;
         let to_world = to_light.transpose();
-        let inv_world_h = 1.0 / h;
-        let mut values = vec![0.0f32; shape.len() * 2];
-        // One slab per z: its columns along y (the light) are summed independently.
+        let columns = Columns {
+            start: (to_world * shape.origin).as_dvec3(),
+            u: to_world.y_axis.as_dvec3(),
+            v: to_world.z_axis.as_dvec3(),
+            dir: to_world.x_axis.as_dvec3(),
+            h: h as f64,
+            length: (h * (nx - 1) as f32) as f64,
+        };
+        // Every node is written below, so reused buffers need no clearing.
+        let (mut values, mut sigma) = reuse.map(|g| (g.values, g.sigma)).unwrap_or_default();
+        values.resize(shape.len() * 2, 0.0);
+        values.truncate(shape.len() * 2);
+        sigma.resize(shape.len(), 0.0);
+        sigma.truncate(shape.len());
+        let dir = to_world.x_axis;
+        // One slab per z: its columns (rows along x) are independent.
         values
             .par_chunks_mut(nx * ny * 2)
+            .zip(sigma.par_chunks_mut(nx * ny))
             .enumerate()
-            .for_each(|(k, slab)| {
-                for i in 0..nx {
-                    let (mut tau, mut prev) = (0.0f32, 0.0f32);
-                    for j in 0..ny {
-                        let p = to_world * shape.node(i, j, k);
-                        let mut s = [0.0f32; 1];
-                        trilinear::<1>(world, inv_world_h, sigma, p, &mut s);
-                        if j > 0 {
-                            tau += 0.5 * (prev + s[0]) * h;
-                        }
-                        prev = s[0];
-                        // No shift toward the light here (the world grid's sweep needs one):
-                        // measured against Mitsuba, any shift made the cloud brighter than
-                        // the reference.
-                        let idx = 2 * (i + nx * j);
-                        slab[idx] = tau;
-                        slab[idx + 1] = (-tau).exp();
+            .for_each_init(
+                || medium.scratch(),
+                |scratch, (k, (slab, slab_sigma))| {
+                    for j0 in (0..ny).step_by(BUNDLE_COLUMNS) {
+                        let bundle = j0..(j0 + BUNDLE_COLUMNS).min(ny);
+                        let ray = |j: usize, k: usize| Ray {
+                            origin: to_world * shape.node(0, j, k),
+                            dir,
+                        };
+                        sample_bundle(
+                            medium,
+                            scratch,
+                            &columns,
+                            bundle,
+                            k..k + 1,
+                            ray,
+                            |s, j, _, r| {
+                                let out = &mut slab[2 * nx * j..2 * nx * (j + 1)];
+                                let sigma = &mut slab_sigma[nx * j..nx * (j + 1)];
+                                column(medium, s, r, h, sigma, out);
+                            },
+                        );
                     }
-                }
-            });
-        SunGrid {
+                },
+            );
+        blur(&mut sigma, shape.dims);
+        Some(SunGrid {
             to_light,
             inv_h: 1.0 / h,
             shape,
             values,
-        }
+            sigma,
+        })
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.shape.len()
+    }
+
+    /// True when the grid has no node (never after [`SunGrid::build`]).
+    pub fn is_empty(&self) -> bool {
+        self.shape.is_empty()
+    }
+
+    /// The sampled extinction at world point `x` as a grid of twice the spacing sees it: the
+    /// samples blurred by `[¼ ½ ¼]` per axis, then trilinear — a filter about two cells wide
+    /// (0 outside the grid: its border nodes lie outside the cloud).
+    #[inline]
+    pub fn coarse_extinction(&self, x: Vec3A) -> f32 {
+        let mut out = [0.0f32; 1];
+        trilinear::<1>(
+            &self.shape,
+            self.inv_h,
+            &self.sigma,
+            self.to_light * x,
+            &mut out,
+        );
+        out[0]
     }
 
     /// `[τ, e^{−τ}]` toward the sun at world point `x` (clamped to the grid, whose border
@@ -114,5 +172,90 @@ impl SunGrid {
             &mut out,
         );
         out
+    }
+}
+
+/// One light column: the extinction at its nodes inside the ray's intervals (0 elsewhere) into
+/// `sigma`, then `[τ, e^{−τ}]` per node into `out` (`2 × nodes` values) by the trapezoid rule,
+/// from `τ = 0` at the column's first node.
+fn column<M: Medium>(
+    medium: &M,
+    s: &mut M::Scratch,
+    ray: &Ray,
+    h: f32,
+    sigma: &mut [f32],
+    out: &mut [f32],
+) {
+    let nodes = out.len() / 2;
+    // Before the first node the medium may reach nothing is in the way (intervals are sorted).
+    let begin = medium
+        .intervals(s)
+        .first()
+        .map_or(nodes, |iv| ((iv[0] / h).ceil() as usize).min(nodes));
+    for node in out[..2 * begin].chunks_exact_mut(2) {
+        node[0] = 0.0;
+        node[1] = 1.0;
+    }
+    sigma.fill(0.0);
+    if begin == nodes {
+        return;
+    }
+    for n in 0..medium.intervals(s).len() {
+        let iv = medium.intervals(s)[n];
+        let first = (iv[0] / h).ceil() as usize;
+        let last = ((iv[1] / h).floor() as usize).min(nodes - 1);
+        for (j, v) in sigma.iter_mut().enumerate().take(last + 1).skip(first) {
+            let t = j as f32 * h;
+            *v = medium.extinction(s, t, ray.at(t));
+        }
+    }
+    let (mut tau, mut prev, mut trans) = (0.0f32, 0.0f32, 1.0f32);
+    for (node, &sj) in out.chunks_exact_mut(2).zip(sigma.iter()).skip(begin) {
+        let step = 0.5 * (prev + sj) * h;
+        if step > 0.0 {
+            // Past the cloud the depth stays constant: no `exp` there.
+            tau += step;
+            trans = (-tau).exp();
+        }
+        prev = sj;
+        node[0] = tau;
+        node[1] = trans;
+    }
+}
+
+/// Blur `v` (a grid of `dims` nodes, x fastest) by `[¼ ½ ¼]` along each axis in place; a missing
+/// neighbour at the border counts as 0 (the border lies outside the cloud).
+fn blur(v: &mut [f32], dims: [usize; 3]) {
+    let [nx, ny, nz] = dims;
+    let line = |v: &mut [f32], n: usize, stride: usize| {
+        let mut prev = 0.0f32;
+        for a in 0..n {
+            let cur = v[a * stride];
+            let next = if a + 1 < n { v[(a + 1) * stride] } else { 0.0 };
+            v[a * stride] = 0.25 * (prev + next) + 0.5 * cur;
+            prev = cur;
+        }
+    };
+    v.par_chunks_mut(nx * ny).for_each(|slab| {
+        for j in 0..ny {
+            line(&mut slab[j * nx..(j + 1) * nx], nx, 1);
+        }
+        for i in 0..nx {
+            line(&mut slab[i..], ny, nx);
+        }
+    });
+    // Along z: slab by slab, keeping the previous slab's values before the blur.
+    let plane = nx * ny;
+    let mut prev = vec![0.0f32; plane];
+    let mut cur = vec![0.0f32; plane];
+    for k in 0..nz {
+        cur.copy_from_slice(&v[k * plane..(k + 1) * plane]);
+        let (here, rest) = v[k * plane..].split_at_mut(plane);
+        let next = rest.get(..plane);
+        for (c, out) in here.iter_mut().enumerate() {
+            let n = next.map_or(0.0, |s| s[c]);
+            *out = 0.25 * (prev[c] + n) + 0.5 * cur[c];
+        }
+        std::mem::swap(&mut prev, &mut cur);
     }
 }

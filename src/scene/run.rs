@@ -82,6 +82,8 @@ impl Shot {
         };
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
+        // Frames in order: a hold reuses the last frame, a still cloud its light grid.
+        let mut renderer = crate::render::ShotRenderer::new();
         for &frame in self.frames() {
             let start = Instant::now();
             let k = self.index(frame);
@@ -106,11 +108,18 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            let image = self.render_with(&settings, &blobs);
+            // Passes come from their own march (no reuse of the last frame's light grid).
+            let with_passes;
+            let image = if self.passes() {
+                with_passes = crate::render::render_frame_with_passes(&settings, &blobs);
+                &with_passes
+            } else {
+                renderer.render(&settings, &blobs)
+            };
             let rendered = Instant::now();
             if !finished {
                 let out = files::FrameOutput {
-                    image: &image,
+                    image,
                     settings: &settings,
                     blobs: &blobs,
                     voxel,
@@ -120,7 +129,7 @@ impl Shot {
             }
             let written = Instant::now();
             if let Some(basis) = &basis {
-                stats.push(basis.frame(frame, &blobs, Some(&image)));
+                stats.push(basis.frame(frame, &blobs, Some(image)));
             }
             render_s += (rendered - start).as_secs_f64();
             write_s += (written - rendered).as_secs_f64();

@@ -115,7 +115,7 @@ impl Medium for DenseGrid {
         s
     }
 
-    fn extinction(&self, _: &Self::Scratch, _: f32, x: Vec3A) -> f32 {
+    fn extinction(&self, _: &mut Self::Scratch, _: f32, x: Vec3A) -> f32 {
         self.sigma(x)
     }
 

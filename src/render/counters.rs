@@ -1,0 +1,67 @@
+//! Work counters for the benchmark: how many density samples, blob visits, noise evaluations
+//! and shaded samples a frame costs, so that speed work is chosen by what the frame does, not
+//! guessed.
+//!
+//! Compiled in only with the `counters` feature (`cargo test --release --features counters
+//! --test render -- --ignored --nocapture bench`); without it [`add`] is empty and inlines to
+//! nothing. The counts are global relaxed atomics: exact totals at any thread count, at a cost
+//! that matters only in the counting build (whose times are not the benchmark's).
+
+/// What is counted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(usize)]
+pub enum Counter {
+    /// Density evaluations by the camera march.
+    MarchSamples,
+    /// Density evaluations while filling the light grid.
+    LightSamples,
+    /// Blob hits whose span starts before the sample (what the density loop walks over).
+    HitsVisited,
+    /// Of those, hits the sample has already left (`t > t1`): visited for nothing.
+    HitsEnded,
+    /// Erosion noise stacks evaluated (each one `noise.octaves` octaves).
+    NoiseEvals,
+    /// March samples shaded (a light lookup and the in-scattering).
+    ShadedSamples,
+}
+
+/// Number of [`Counter`]s.
+pub const COUNTERS: usize = 6;
+
+/// Names in [`Counter`] order.
+pub const NAMES: [&str; COUNTERS] = [
+    "march samples",
+    "light-grid samples",
+    "hits visited",
+    "hits ended",
+    "noise stacks",
+    "shaded samples",
+];
+
+#[cfg(feature = "counters")]
+static COUNTS: [std::sync::atomic::AtomicU64; COUNTERS] =
+    [const { std::sync::atomic::AtomicU64::new(0) }; COUNTERS];
+
+/// Add `n` to `counter` (nothing without the `counters` feature).
+#[inline(always)]
+pub fn add(counter: Counter, n: u64) {
+    #[cfg(feature = "counters")]
+    COUNTS[counter as usize].fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    #[cfg(not(feature = "counters"))]
+    let _ = (counter, n);
+}
+
+/// True when the counters are compiled in.
+pub const ENABLED: bool = cfg!(feature = "counters");
+
+/// The counts since the last call, and reset them (all 0 without the feature).
+pub fn take() -> [u64; COUNTERS] {
+    #[cfg(feature = "counters")]
+    {
+        std::array::from_fn(|i| COUNTS[i].swap(0, std::sync::atomic::Ordering::Relaxed))
+    }
+    #[cfg(not(feature = "counters"))]
+    {
+        [0; COUNTERS]
+    }
+}
