@@ -280,7 +280,7 @@ fn render_slices(
                             let (m, s) = (&slices[j], &mut scratch.media[j]);
                             m.set_time_offset(s, dt);
                             let lights = &lights[j.min(lights.len() - 1)];
-                            let r = march::<_, _, true>(
+                            let r = march::<_, _, true, false>(
                                 m,
                                 lights,
                                 &shading,
