@@ -100,6 +100,7 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         rgb: vec![[0.0; 3]; (base.width * base.height) as usize],
         alpha: vec![0.0; (base.width * base.height) as usize],
         depth: Vec::new(),
+        passes: None,
     };
     for offset in &centres {
         let mut s = base.clone();
