@@ -415,6 +415,7 @@ fn exr_bytes_are_identical_across_encodings() {
         rgb: vec![[0.5, 0.25, 0.125]; 8],
         alpha: vec![0.75; 8],
         depth: vec![3.0; 8],
+        passes: None,
     };
     let strings = ["scene", "frame", "seed", "version"]
         .iter()

@@ -274,6 +274,8 @@ pub struct OutputSpec {
     pub padding: u32,
     /// The RGB space of the EXR's linear values (the PNG is always sRGB display-referred).
     pub colorspace: ColorSpace,
+    /// Also write the render passes (`sun`, `sky`, `multiple` layers) into the EXR.
+    pub passes: bool,
 }
 
 impl Default for OutputSpec {
@@ -285,6 +287,7 @@ impl Default for OutputSpec {
             voxel: None,
             padding: 4,
             colorspace: ColorSpace::default(),
+            passes: false,
         }
     }
 }

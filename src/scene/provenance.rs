@@ -64,6 +64,9 @@ pub fn output_kind(shot: &Shot) -> String {
         "final".to_string()
     };
     kind.push_str(&format!("; {:?}", out.colorspace));
+    if shot.passes() {
+        kind.push_str("; passes");
+    }
     kind
 }
 

@@ -108,7 +108,14 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            let image = renderer.render(&settings, &blobs);
+            // Passes come from their own march (no reuse of the last frame's light grid).
+            let with_passes;
+            let image = if self.passes() {
+                with_passes = crate::render::render_frame_with_passes(&settings, &blobs);
+                &with_passes
+            } else {
+                renderer.render(&settings, &blobs)
+            };
             let rendered = Instant::now();
             if !finished {
                 let out = files::FrameOutput {

@@ -34,6 +34,8 @@ pub struct RenderOptions {
     /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
     /// already done are rendered again in memory for their coverage.
     pub stats: bool,
+    /// Write the render passes into the EXR, as `output.passes: true` does.
+    pub passes: bool,
 }
 
 /// The target and its planned animation.
@@ -160,6 +162,11 @@ impl Shot {
         (self.width, self.height)
     }
 
+    /// True when the EXR frames get the render passes (`--passes` or `output.passes`).
+    pub fn passes(&self) -> bool {
+        self.options.passes || self.scene.file.output.passes
+    }
+
     /// True for a `--preview` run.
     pub fn is_preview(&self) -> bool {
         self.options.preview
@@ -215,9 +222,18 @@ impl Shot {
         Ok(self.prepared()?.plan.frame(k as usize))
     }
 
-    /// Render 0-based frame `k` in memory.
+    /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
     pub fn render_frame(&self, k: u32) -> Result<Frame, SceneError> {
-        Ok(render::render_frame(&self.settings(k)?, &self.blobs(k)?))
+        Ok(self.render_with(&self.settings(k)?, &self.blobs(k)?))
+    }
+
+    /// Render `blobs` with `settings`, with the passes if the shot asks for them.
+    pub fn render_with(&self, settings: &RenderSettings, blobs: &[Blob]) -> Frame {
+        if self.passes() {
+            render::render_frame_with_passes(settings, blobs)
+        } else {
+            render::render_frame(settings, blobs)
+        }
     }
 }
 
