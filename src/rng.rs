@@ -23,6 +23,8 @@ pub enum Stream {
     Noise = 6,
     /// Evaluation sampling.
     Eval = 7,
+    /// Motion-blur time samples (per pixel and frame).
+    Shutter = 8,
 }
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash.

@@ -416,6 +416,7 @@ fn exr_bytes_are_identical_across_encodings() {
         rgb: vec![[0.5, 0.25, 0.125]; 8],
         alpha: vec![0.75; 8],
         depth: vec![3.0; 8],
+        passes: None,
     };
     let strings = ["scene", "frame", "seed", "version"]
         .iter()
@@ -452,6 +453,13 @@ fn usd_python() -> Option<PathBuf> {
 fn usd_stage_camera_projects_like_the_renderer() {
     use nephele::scene::{self, RenderOptions};
     let (dir, path) = cloud_scene("usd", "output: (formats: [Vdb], voxel: 0.03)");
+    // A 180° shutter: the stage's camera carries it.
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(
+        &path,
+        text.replace("seconds: 1.0)", "seconds: 1.0, shutter: 0.5)"),
+    )
+    .unwrap();
     let stage_path = dir.join("stage/shot.usda");
     let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
         .arg("usd")
@@ -515,6 +523,7 @@ fn usd_stage_camera_projects_like_the_renderer() {
             (Some("DistantLight"), Some("DomeLight"))
         );
         assert_eq!(j["field_name"], "density");
+        assert_eq!(j["shutter"], serde_json::json!([-0.25, 0.25]));
         // The velocity beside it, in the same frame files.
         let vel = &j["fields"]["vel"];
         assert_eq!(vel["field_name"], "vel");

@@ -440,3 +440,116 @@ fn bad_input_is_refused_before_any_work_with_each_cause_once() {
     assert!(!dir.join("out").exists(), "nothing is written");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn passes_sum_to_the_beauty_which_keeps_its_bits() {
+    let dir = temp_dir("passes");
+    let shot = "width: 48, height: 27, fps: 6, seconds: 1.0";
+    write_scene(&dir, "c", shot, "output: (dir: \"plain\", formats: [Exr])");
+    write_scene(
+        &dir,
+        "p",
+        shot,
+        "output: (dir: \"passes\", name: \"c\", formats: [Exr], passes: true)",
+    );
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "6"]));
+    run(nephele(&dir).args(["render", "p.ron", "--frames", "6"]));
+    // `--passes` is the same as `output.passes: true`.
+    let t = run(nephele(&dir).args([
+        "render", "c.ron", "--frames", "6", "--passes", "--output", "cli",
+    ]));
+    assert!(t.contains("1 frames rendered"), "{t}");
+    let (plain, with) = (dir.join("plain/c_0006.exr"), dir.join("passes/c_0006.exr"));
+    let (a, b) = (channels(&plain), channels(&with));
+    assert_eq!(channels(&dir.join("cli/c_0006.exr")), b);
+    let names: Vec<&str> = b.keys().map(|k| k.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "A",
+            "B",
+            "G",
+            "R",
+            "Z",
+            "multiple.B",
+            "multiple.G",
+            "multiple.R",
+            "sky.B",
+            "sky.G",
+            "sky.R",
+            "sun.B",
+            "sun.G",
+            "sun.R"
+        ]
+    );
+    for c in ["R", "G", "B", "A", "Z"] {
+        assert_eq!(a[c], b[c], "{c}: the beauty changed with passes");
+    }
+    let (mut worst, mut lit) = (0.0f64, 0);
+    for c in ["R", "G", "B"] {
+        let (sun, sky, ms) = (
+            &b[&format!("sun.{c}")],
+            &b[&format!("sky.{c}")],
+            &b[&format!("multiple.{c}")],
+        );
+        for (i, &beauty) in b[c].iter().enumerate() {
+            let sum = sun[i] as f64 + sky[i] as f64 + ms[i] as f64;
+            let beauty = beauty as f64;
+            if beauty > 1e-3 {
+                worst = worst.max((sum - beauty).abs() / beauty);
+                lit += 1;
+            } else {
+                assert!((sum - beauty).abs() < 1e-8, "{c}[{i}] {sum} vs {beauty}");
+            }
+        }
+    }
+    assert!(lit > 60, "too few cloud pixels ({lit})");
+    assert!(
+        worst <= 1e-5,
+        "pass sum off the beauty by {worst:e} (relative)"
+    );
+    // Every pass carries light somewhere.
+    for layer in ["sun", "sky", "multiple"] {
+        let max = b[&format!("{layer}.G")]
+            .iter()
+            .copied()
+            .fold(0.0f32, f32::max);
+        assert!(max > 1e-3, "{layer} is black");
+    }
+    eprintln!(
+        "EXR 48×27: {} bytes without passes, {} with; pass sum within {worst:.1e} of the beauty",
+        std::fs::metadata(&plain).unwrap().len(),
+        std::fs::metadata(&with).unwrap().len()
+    );
+    if let Some(info) = oiiotool_info(&with) {
+        assert!(
+            info.contains(
+                "channel list: R, G, B, A, Z, multiple.R, multiple.G, multiple.B, sky.R, sky.G, \
+                 sky.B, sun.R, sun.G, sun.B"
+            ),
+            "{info}"
+        );
+        // OpenImageIO's own sum of the three layers against the beauty.
+        let f = with.to_string_lossy().into_owned();
+        let o = Command::new("oiiotool")
+            .args([
+                &f,
+                "--ch",
+                "sun.R,sun.G,sun.B",
+                &f,
+                "--ch",
+                "sky.R,sky.G,sky.B",
+                "--add",
+            ])
+            .args([&f, "--ch", "multiple.R,multiple.G,multiple.B", "--add"])
+            .args([&f, "--ch", "R,G,B", "--fail", "1e-5", "--diff"])
+            .output()
+            .unwrap();
+        let t = text(&o);
+        assert!(
+            o.status.success() && t.contains("PASS"),
+            "oiiotool --diff: {t}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -32,6 +32,10 @@ pub struct Args {
     /// <output>/<name>_stats.csv; frames already done are re-rendered in memory for them.
     #[arg(long)]
     pub stats: bool,
+    /// Also write the render passes into the EXR: layers sun, sky and multiple (their sum is
+    /// the beauty), as `output.passes: true` does.
+    #[arg(long)]
+    pub passes: bool,
     /// Print the wall time of each stage at the end.
     #[arg(long)]
     pub timings: bool,
@@ -84,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         force: args.force,
         dump_blobs: args.dump_blobs,
         stats: args.stats,
+        passes: args.passes,
     };
     let name = scene.name.clone();
     let mut shot = Shot::open(scene, &opts)?;

@@ -44,6 +44,8 @@ pub struct BlobScratch {
     tile: Vec<u32>,
     hits: Vec<Hit>,
     intervals: Vec<[f32; 2]>,
+    /// Seconds from the medium's time for the next rays (see [`Medium::set_time_offset`]).
+    dt: f32,
     /// The hits spanning the last sampled `t`, in `hits`' order (see [`ActiveHits`]).
     active: ActiveHits,
 }
@@ -121,12 +123,45 @@ pub struct BlobMedium {
     step: f32,
     /// The cumulus base, if any.
     base: Option<BasePlane>,
+    /// Velocity of each live blob's centre (world units per second); empty for a still cloud.
+    velocity: Vec<Vec3A>,
+    /// Largest time offset `|dt|` the rays may ask for (seconds): the tile culling widens each
+    /// blob by `|v|·sweep`.
+    sweep: f32,
 }
 
 impl BlobMedium {
     /// Prepare `blobs` for rendering with `settings`: convert and derive the step. Dead blobs
     /// (`B = 0`, a zero or non-finite size) are dropped here.
     pub fn new(settings: &RenderSettings, blobs: &[Blob]) -> BlobMedium {
+        Self::build(settings, blobs, None)
+    }
+
+    /// [`BlobMedium::new`] for a motion-blur time sample: the blobs at the sample's time and
+    /// their centres' velocities (`velocity[i]` for `blobs[i]`), so that a ray may ask for the
+    /// cloud up to `sweep` seconds either side of it ([`Medium::set_time_offset`]: each blob
+    /// moves with its centre's velocity; rotation and growth are held for that short while).
+    pub fn moving(
+        settings: &RenderSettings,
+        blobs: &[Blob],
+        velocity: &[glam::DVec3],
+        sweep: f32,
+    ) -> BlobMedium {
+        let mut m = Self::build(settings, blobs, Some(velocity));
+        m.sweep = sweep.abs();
+        m
+    }
+
+    /// Use `step` as the coarse march step (all time samples of a frame march alike).
+    pub fn set_step(&mut self, step: f32) {
+        self.step = step;
+    }
+
+    fn build(
+        settings: &RenderSettings,
+        blobs: &[Blob],
+        velocity: Option<&[glam::DVec3]>,
+    ) -> BlobMedium {
         let length = settings.length_scale.max(1e-12);
         let noise = settings.cloud.noise;
         // Octave 0's wavelength; the noise frames below are in its units.
@@ -157,6 +192,8 @@ impl BlobMedium {
             },
             base: settings.base,
             step: 0.0,
+            velocity: Vec::new(),
+            sweep: 0.0,
         };
         let mut radii = Vec::new();
         for (index, blob) in blobs.iter().enumerate() {
@@ -191,6 +228,14 @@ impl BlobMedium {
                 rng.random_range(-128.0..128.0),
                 rng.random_range(-128.0..128.0),
             );
+            if let Some(v) = velocity {
+                let v = v.get(index).copied().unwrap_or_default();
+                m.velocity.push(if v.is_finite() {
+                    Vec3A::from(v.as_vec3())
+                } else {
+                    Vec3A::ZERO
+                });
+            }
             m.center.push(center);
             m.unit_from_world
                 .push(Mat3A::from_diagonal(support.recip()) * local_from_world);
@@ -250,13 +295,25 @@ impl BlobMedium {
 
     /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
     /// merged spans into `intervals`.
-    fn gather(&self, candidates: &[u32], ray: &Ray, hits: &mut Vec<Hit>, ivs: &mut Vec<[f32; 2]>) {
+    fn gather(
+        &self,
+        candidates: &[u32],
+        ray: &Ray,
+        dt: f32,
+        hits: &mut Vec<Hit>,
+        ivs: &mut Vec<[f32; 2]>,
+    ) {
         hits.clear();
         ivs.clear();
+        let moving = dt != 0.0 && !self.velocity.is_empty();
         for &i in candidates {
             let i = i as usize;
             let m = self.unit_from_world[i];
-            let rel = ray.origin - self.center[i];
+            let rel = if moving {
+                ray.origin - (self.center[i] + self.velocity[i] * dt)
+            } else {
+                ray.origin - self.center[i]
+            };
             let (o, d) = (m * rel, m * ray.dir);
             if let Some((t0, t1)) = ray_ellipsoid(o, d) {
                 let n = self.noise_from_world[i];
@@ -330,9 +387,18 @@ impl Medium for BlobMedium {
 
     fn begin_tile(&self, frustum: &Frustum, s: &mut BlobScratch) {
         s.tile.clear();
-        s.tile.extend((0..self.len() as u32).filter(|&i| {
-            frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
-        }));
+        if self.velocity.is_empty() || self.sweep == 0.0 {
+            s.tile.extend((0..self.len() as u32).filter(|&i| {
+                frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
+            }));
+        } else {
+            // Wide enough for the blob anywhere within `±sweep` of the sample's time.
+            s.tile.extend((0..self.len() as u32).filter(|&i| {
+                let i = i as usize;
+                let reach = self.radius[i] + self.velocity[i].length() * self.sweep;
+                frustum.may_contain_ball(self.center[i], reach)
+            }));
+        }
     }
 
     fn begin_ray(&self, ray: &Ray, s: &mut BlobScratch) {
@@ -341,9 +407,14 @@ impl Medium for BlobMedium {
             hits,
             intervals,
             active,
+            dt,
         } = s;
-        self.gather(tile, ray, hits, intervals);
+        self.gather(tile, ray, *dt, hits, intervals);
         active.reset();
+    }
+
+    fn set_time_offset(&self, s: &mut BlobScratch, dt: f32) {
+        s.dt = dt.clamp(-self.sweep, self.sweep);
     }
 
     fn intervals<'s>(&self, s: &'s BlobScratch) -> &'s [[f32; 2]] {
@@ -442,7 +513,7 @@ mod tests {
         };
         let (mut hits, mut ivs) = (Vec::new(), Vec::new());
         let all: Vec<u32> = (0..m.len() as u32).collect();
-        m.gather(&all, &ray, &mut hits, &mut ivs);
+        m.gather(&all, &ray, 0.0, &mut hits, &mut ivs);
         assert!(hits.len() > MAX_ACTIVE);
         let sigma = m.density(&hits, 5.0);
         assert!(

@@ -48,10 +48,12 @@ const MAX_STEPS: u32 = 1_000_000;
 
 /// What one pixel's march produced.
 #[derive(Clone, Copy, Debug)]
-struct PixelResult {
-    rgb: Vec3A,
-    transmittance: f32,
-    depth: f32,
+pub(super) struct PixelResult {
+    pub(super) rgb: Vec3A,
+    pub(super) transmittance: f32,
+    pub(super) depth: f32,
+    /// The render passes (sun, sky, multiple), when asked for.
+    pub(super) passes: [Vec3A; 3],
 }
 
 /// Render `medium` as seen by `settings.camera`, lit through `lights` (usually the light grid
@@ -62,16 +64,28 @@ pub fn render_medium<M: Medium, L: Lights>(
     medium: &M,
     lights: &L,
 ) -> Frame {
-    render_tiles::<M, L, true>(settings, medium, lights)
+    render_tiles::<M, L, true, false>(settings, medium, lights)
+}
+
+/// [`render_medium`] with the render passes: the frame's [`super::Passes`] hold the sun's
+/// single scattering, the sky's (its cells and the light scattered straight on) and the
+/// multiple-scattering octaves, which sum to the beauty's RGB (up to rounding). The beauty is
+/// the same bits as without passes.
+pub fn render_medium_passes<M: Medium, L: Lights>(
+    settings: &RenderSettings,
+    medium: &M,
+    lights: &L,
+) -> Frame {
+    render_tiles::<M, L, true, true>(settings, medium, lights)
 }
 
 /// Coverage and depth only (RGB stays 0): the same march without lighting, for profiling the
 /// cost of shading and for coverage tests.
 pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
-    render_tiles::<M, Unshadowed, false>(settings, medium, &Unshadowed)
+    render_tiles::<M, Unshadowed, false, false>(settings, medium, &Unshadowed)
 }
 
-fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
+fn render_tiles<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
     settings: &RenderSettings,
     medium: &M,
     lights: &L,
@@ -98,7 +112,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
                         let pixel = y as u64 * w as u64 + x as u64;
                         let mut rng = item_rng(seed, Stream::Render, pixel);
                         let mut trace = |ray: &Ray, jitter: f32| {
-                            march::<M, L, SHADE>(
+                            march::<M, L, SHADE, PASSES>(
                                 medium,
                                 lights,
                                 &shading,
@@ -117,6 +131,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
                             rgb: Vec3A::ZERO,
                             transmittance: 0.0,
                             depth: 0.0,
+                            passes: [Vec3A::ZERO; 3],
                         };
                         let mut depth_w = 0.0f32;
                         for k in 0..samples {
@@ -130,6 +145,9 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
                             let r = trace(&ray, jitter);
                             acc.rgb += r.rgb;
                             acc.transmittance += r.transmittance;
+                            for (a, p) in acc.passes.iter_mut().zip(r.passes) {
+                                *a += p;
+                            }
                             if r.depth.is_finite() {
                                 let c = 1.0 - r.transmittance;
                                 acc.depth += r.depth * c;
@@ -139,6 +157,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
                         let inv = 1.0 / samples as f32;
                         acc.rgb *= inv;
                         acc.transmittance *= inv;
+                        acc.passes = acc.passes.map(|p| p * inv);
                         acc.depth = if depth_w > 0.0 {
                             acc.depth / depth_w
                         } else {
@@ -158,6 +177,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
         rgb: vec![[0.0; 3]; n],
         alpha: vec![0.0; n],
         depth: vec![f32::INFINITY; n],
+        passes: PASSES.then(|| Box::new(super::Passes::zeros(n))),
     };
     for (tile, px) in tiles.iter().enumerate() {
         let tile = tile as u32;
@@ -170,6 +190,11 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
             frame.rgb[i] = p.rgb.to_array();
             frame.alpha[i] = 1.0 - p.transmittance;
             frame.depth[i] = p.depth;
+            if let Some(passes) = &mut frame.passes {
+                passes.sun[i] = p.passes[0].to_array();
+                passes.sky[i] = p.passes[1].to_array();
+                passes.multiple[i] = p.passes[2].to_array();
+            }
         }
     }
     frame
@@ -184,7 +209,7 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool>(
 /// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
 /// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
 #[inline]
-fn march<M: Medium, L: Lights, const SHADE: bool>(
+pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
     medium: &M,
     lights: &L,
     shading: &Shading,
@@ -205,6 +230,7 @@ fn march<M: Medium, L: Lights, const SHADE: bool>(
     };
     let (mut t_acc, mut rgb, mut depth_sum, mut tau) = (1.0f32, Vec3A::ZERO, 0.0f32, 0.0f32);
     let mut budget = MAX_STEPS;
+    let mut passes = [Vec3A::ZERO; 3];
     'intervals: for n in 0..medium.intervals(scratch).len() {
         let [a, b] = medium.intervals(scratch)[n];
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
@@ -247,7 +273,14 @@ fn march<M: Medium, L: Lights, const SHADE: bool>(
             if let Some(w) = &weights {
                 counters::add(Counter::ShadedSamples, 1);
                 let depths = lights.depths(x);
-                rgb += shading.in_scattered(w, &depths).total() * (absorbed * shading.albedo);
+                let light = shading.in_scattered(w, &depths);
+                let k = absorbed * shading.albedo;
+                rgb += light.total() * k;
+                if PASSES {
+                    passes[0] += light.sun() * k;
+                    passes[1] += light.sky() * k;
+                    passes[2] += light.multiple() * k;
+                }
             }
             tau += sigma * len;
             depth_sum += t * absorbed;
@@ -260,7 +293,10 @@ fn march<M: Medium, L: Lights, const SHADE: bool>(
         }
     }
     if SHADE && t_acc >= MIN_TRANSMITTANCE {
-        rgb += shading.forward_sky(ray.dir, tau);
+        let forward = shading.forward_sky(ray.dir, tau);
+        rgb += forward;
+        // Sky light scattered straight on is the sky's single scattering (its forward lobe).
+        passes[1] += forward;
     }
     let coverage = 1.0 - t_acc;
     PixelResult {
@@ -271,5 +307,103 @@ fn march<M: Medium, L: Lights, const SHADE: bool>(
         } else {
             f32::INFINITY
         },
+        passes,
     }
+}
+
+/// The running mean of a pixel's rays (coverage-weighted depth; no passes), for
+/// [`super::motion_blur`].
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PixelSum {
+    acc: PixelResult,
+    depth_w: f32,
+}
+
+impl PixelSum {
+    pub(super) fn new() -> PixelSum {
+        PixelSum {
+            acc: PixelResult {
+                rgb: Vec3A::ZERO,
+                transmittance: 0.0,
+                depth: 0.0,
+                passes: [Vec3A::ZERO; 3],
+            },
+            depth_w: 0.0,
+        }
+    }
+
+    pub(super) fn add(&mut self, r: &PixelResult) {
+        self.acc.rgb += r.rgb;
+        self.acc.transmittance += r.transmittance;
+        if r.depth.is_finite() {
+            let c = 1.0 - r.transmittance;
+            self.acc.depth += r.depth * c;
+            self.depth_w += c;
+        }
+    }
+
+    /// The mean of `n` rays added.
+    pub(super) fn mean(self, n: u32) -> PixelResult {
+        let mut acc = self.acc;
+        let inv = 1.0 / n as f32;
+        acc.rgb *= inv;
+        acc.transmittance *= inv;
+        acc.depth = if self.depth_w > 0.0 {
+            acc.depth / self.depth_w
+        } else {
+            f32::INFINITY
+        };
+        acc
+    }
+}
+
+/// Ray `k` of pixel `(x, y)` with `samples` rays on a `side × side` stratified grid (the pixel
+/// centre when `samples == 1`) and its march jitter, drawn from the pixel's generator in the
+/// order [`render_medium`] draws them.
+#[inline]
+pub(super) fn pixel_sample(
+    cam: &CameraRays,
+    (x, y): (u32, u32),
+    k: u32,
+    (samples, side): (u32, u32),
+    rng: &mut impl rand::Rng,
+) -> (Ray, f32) {
+    if samples == 1 {
+        return (cam.pixel_ray(x, y), rng.random());
+    }
+    let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
+    let (u, v, jitter): (f32, f32, f32) = (rng.random(), rng.random(), rng.random());
+    let ray = cam.ray(
+        x as f32 + (cx + u) / side as f32,
+        y as f32 + (cy + v) / side as f32,
+    );
+    (ray, jitter)
+}
+
+/// The frame (no passes) from its tiles' pixels (each tile's in row order, tiles in row order).
+pub(super) fn assemble(w: u32, h: u32, tiles: &[Vec<PixelResult>]) -> Frame {
+    let tx = w.div_ceil(TILE);
+    let n = (w * h) as usize;
+    let mut frame = Frame {
+        width: w,
+        height: h,
+        rgb: vec![[0.0; 3]; n],
+        alpha: vec![0.0; n],
+        depth: vec![f32::INFINITY; n],
+        passes: None,
+    };
+    for (tile, px) in tiles.iter().enumerate() {
+        let tile = tile as u32;
+        let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
+        let x1 = (x0 + TILE).min(w);
+        for (k, p) in px.iter().enumerate() {
+            let k = k as u32;
+            let (x, y) = (x0 + k % (x1 - x0), y0 + k / (x1 - x0));
+            let i = (y * w + x) as usize;
+            frame.rgb[i] = p.rgb.to_array();
+            frame.alpha[i] = 1.0 - p.transmittance;
+            frame.depth[i] = p.depth;
+        }
+    }
+    frame
 }

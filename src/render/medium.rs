@@ -33,6 +33,11 @@ pub trait Medium: Sync {
     /// Prepare for `ray` (which lies inside the last tile's frustum).
     fn begin_ray(&self, ray: &Ray, scratch: &mut Self::Scratch);
 
+    /// Show the following rays the medium `dt` seconds after the time it stands for (motion
+    /// blur inside one time sample; [`super::motion_blur`]). Default: the medium does not move.
+    #[inline]
+    fn set_time_offset(&self, _scratch: &mut Self::Scratch, _dt: f32) {}
+
     /// Sorted, disjoint `[t0, t1]` (`0 ≤ t0 < t1`) outside which the last ray's extinction is
     /// zero.
     fn intervals<'s>(&self, scratch: &'s Self::Scratch) -> &'s [[f32; 2]];

@@ -42,6 +42,7 @@ pub mod light_grid;
 pub mod lights;
 pub mod medium;
 pub mod memory;
+pub mod motion_blur;
 pub mod noise;
 pub mod output;
 pub mod phase;
@@ -54,10 +55,11 @@ pub mod sun_grid;
 
 pub use blobs::BlobMedium;
 pub use camera::ray_ellipsoid;
-pub use integrate::{render_medium, render_medium_unshaded};
+pub use integrate::{render_medium, render_medium_passes, render_medium_unshaded};
 pub use light_grid::LightGrid;
 pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
 pub use medium::{Homogeneous, Medium, Shape};
+pub use motion_blur::{BlurReport, Shutter, TimeSample, render_frame_blurred};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
@@ -82,6 +84,31 @@ pub struct Frame {
     /// Transmittance-weighted mean distance from the eye along the pixel's ray (infinity where
     /// the ray hits nothing).
     pub depth: Vec<f32>,
+    /// The render passes, when rendered with them ([`render_frame_with_passes`]).
+    pub passes: Option<Box<Passes>>,
+}
+
+/// A frame's light by component, premultiplied like [`Frame::rgb`]; `sun + sky + multiple` is
+/// the frame's RGB up to rounding.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Passes {
+    /// Sunlight scattered once.
+    pub sun: Vec<[f32; 3]>,
+    /// Sky light scattered once (the sky cells, and the forward lobe straight through).
+    pub sky: Vec<[f32; 3]>,
+    /// The multiple-scattering approximation (sun and sky octaves beyond the first).
+    pub multiple: Vec<[f32; 3]>,
+}
+
+impl Passes {
+    /// Black passes of `n` pixels.
+    pub fn zeros(n: usize) -> Passes {
+        Passes {
+            sun: vec![[0.0; 3]; n],
+            sky: vec![[0.0; 3]; n],
+            multiple: vec![[0.0; 3]; n],
+        }
+    }
 }
 
 /// Render one frame. Deterministic for a given input at any thread count; the per-pixel
@@ -90,4 +117,11 @@ pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
     let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
     render_medium(settings, &medium, &lights)
+}
+
+/// [`render_frame`] with the render passes ([`Frame::passes`]); the beauty is the same bits.
+pub fn render_frame_with_passes(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
+    let medium = BlobMedium::new(settings, blobs);
+    let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
+    integrate::render_medium_passes(settings, &medium, &lights)
 }

@@ -3,7 +3,9 @@
 //!
 //! EXR: channels `R, G, B` hold the cloud's radiance **premultiplied** by its coverage, `A` the
 //! coverage `1 − T`, `Z` the mean distance along the ray (infinity where empty), all f32,
-//! linear, no exposure. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
+//! linear, no exposure. A frame rendered with passes adds the layers `sun.R/G/B`, `sky.R/G/B`
+//! and `multiple.R/G/B` (single-part, scanline: the layout Nuke reads as layers), which sum to
+//! `R, G, B`. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
 //! scene's sky, that is exactly what the PNG shows before exposure and tone mapping.
 //!
 //! EXR metadata ([`FrameMetadata`], written by [`write_exr_with`]): the OpenEXR standard
@@ -177,23 +179,29 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     let chan = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
     let space = meta.map_or(ColorSpace::Rec709, |m| m.color_space);
     let to_space = space.from_rec709().as_mat3();
-    let rgb = |c: usize| {
-        frame
-            .rgb
-            .iter()
+    let convert = |rgb: &[[f32; 3]], c: usize| {
+        rgb.iter()
             .map(|&p| match space {
                 ColorSpace::Rec709 => p[c],
                 _ => (to_space * Vec3::from(p))[c],
             })
             .collect::<Vec<f32>>()
     };
-    let channels = AnyChannels::sort(SmallVec::from_vec(vec![
-        chan("R", rgb(0)),
-        chan("G", rgb(1)),
-        chan("B", rgb(2)),
+    let mut list = vec![
+        chan("R", convert(&frame.rgb, 0)),
+        chan("G", convert(&frame.rgb, 1)),
+        chan("B", convert(&frame.rgb, 2)),
         chan("A", frame.alpha.clone()),
         chan("Z", frame.depth.clone()),
-    ]));
+    ];
+    if let Some(p) = &frame.passes {
+        for (layer, rgb) in [("sun", &p.sun), ("sky", &p.sky), ("multiple", &p.multiple)] {
+            for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+                list.push(chan(&format!("{layer}.{name}"), convert(rgb, c)));
+            }
+        }
+    }
+    let channels = AnyChannels::sort(SmallVec::from_vec(list));
     let mut attributes = LayerAttributes::named("nephele");
     if let Some(meta) = meta {
         attributes.world_to_camera = Some(meta.world_to_camera);

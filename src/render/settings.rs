@@ -237,6 +237,10 @@ pub struct Quality {
     pub optical_step: f32,
     /// Rays per pixel (stratified inside the pixel; 1 = through the pixel centre).
     pub samples: u32,
+    /// Time samples across an open shutter (`shot.shutter > 0`; motion blur): a pixel then
+    /// traces `max(samples, time_samples)` rays, each at its own time stratum. Unused when the
+    /// shutter is closed.
+    pub time_samples: u32,
 }
 
 impl Quality {
@@ -251,6 +255,7 @@ impl Quality {
                 ms_octaves: 4,
                 optical_step: 0.02,
                 samples: 4,
+                time_samples: 8,
             },
         }
     }
@@ -263,6 +268,7 @@ impl Quality {
             ms_octaves: 3,
             optical_step: 0.08,
             samples: 1,
+            time_samples: 4,
         }
     }
 
@@ -274,6 +280,7 @@ impl Quality {
             ms_octaves: 2,
             optical_step: 0.2,
             samples: 1,
+            time_samples: 2,
         }
     }
 }

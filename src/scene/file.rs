@@ -189,6 +189,9 @@ pub struct ShotSpec {
     pub fps: f64,
     /// Length in seconds; the shot has `max(1, round(seconds · fps))` frames.
     pub seconds: f64,
+    /// Open shutter as a fraction of a frame, centred on the frame's time (`0` = no motion
+    /// blur, the default; `0.5` = a 180° film shutter; at most 1).
+    pub shutter: f64,
     /// Number of the first frame (film pipelines start at 1001); see [`super::frames`].
     pub start_frame: u32,
 }
@@ -200,6 +203,7 @@ impl Default for ShotSpec {
             height: 360,
             fps: 24.0,
             seconds: 4.0,
+            shutter: 0.0,
             start_frame: 1,
         }
     }
@@ -274,6 +278,8 @@ pub struct OutputSpec {
     pub padding: u32,
     /// The RGB space of the EXR's linear values (the PNG is always sRGB display-referred).
     pub colorspace: ColorSpace,
+    /// Also write the render passes (`sun`, `sky`, `multiple` layers) into the EXR.
+    pub passes: bool,
 }
 
 impl Default for OutputSpec {
@@ -285,6 +291,7 @@ impl Default for OutputSpec {
             voxel: None,
             padding: 4,
             colorspace: ColorSpace::default(),
+            passes: false,
         }
     }
 }
@@ -324,6 +331,15 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         if !(v.is_finite() && v > 0.0) {
             return Err(bad(name, format!("must be a positive number, got {v}")));
         }
+    }
+    if !(s.shot.shutter.is_finite() && (0.0..=1.0).contains(&s.shot.shutter)) {
+        return Err(bad(
+            "shot.shutter",
+            format!(
+                "must be a fraction of a frame in [0, 1], got {}",
+                s.shot.shutter
+            ),
+        ));
     }
     // Counted in f64 before any integer conversion or list of frames.
     let count = (s.shot.seconds * s.shot.fps).round();

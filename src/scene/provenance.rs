@@ -64,6 +64,9 @@ pub fn output_kind(shot: &Shot) -> String {
         "final".to_string()
     };
     kind.push_str(&format!("; {:?}", out.colorspace));
+    if shot.passes() {
+        kind.push_str("; passes");
+    }
     kind
 }
 
@@ -81,6 +84,7 @@ pub fn frame_hash(
         env!("CARGO_PKG_VERSION"),
         output_kind(shot)
     );
+    let time_samples = settings.quality.time_samples;
     let settings = format!("{settings:?}");
     let blobs = format!("{blobs:?}");
     // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
@@ -105,11 +109,23 @@ pub fn frame_hash(
         }
         _ => String::new(),
     };
+    // An open shutter renders the blobs over its time samples (nothing added when closed, so
+    // such frames keep their hashes).
+    let shutter = if shot.scene().file.shot.shutter > 0.0 {
+        format!(
+            "shutter {:?}; {:?}",
+            shot.scene().file.shot.shutter,
+            shot.shutter(k, time_samples).ok().flatten()
+        )
+    } else {
+        String::new()
+    };
     super::target::fnv1a(&[
         head.as_bytes(),
         settings.as_bytes(),
         blobs.as_bytes(),
         motion.as_bytes(),
+        shutter.as_bytes(),
     ])
 }
 

@@ -108,7 +108,18 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            let image = renderer.render(&settings, &blobs);
+            // Passes come from their own march (no reuse of the last frame's light grid); an
+            // open shutter with a moving cloud blurs (without passes).
+            let (with_passes, blurred);
+            let image = if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
+                blurred = crate::render::render_frame_blurred(&settings, &blobs, &shutter).0;
+                &blurred
+            } else if self.passes() {
+                with_passes = crate::render::render_frame_with_passes(&settings, &blobs);
+                &with_passes
+            } else {
+                renderer.render(&settings, &blobs)
+            };
             let rendered = Instant::now();
             if !finished {
                 let out = files::FrameOutput {

@@ -35,6 +35,8 @@ pub struct RenderOptions {
     /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
     /// already done are rendered again in memory for their coverage.
     pub stats: bool,
+    /// Write the render passes into the EXR, as `output.passes: true` does.
+    pub passes: bool,
 }
 
 /// The target and its planned animation.
@@ -161,6 +163,11 @@ impl Shot {
         (self.width, self.height)
     }
 
+    /// True when the EXR frames get the render passes (`--passes` or `output.passes`).
+    pub fn passes(&self) -> bool {
+        self.options.passes || self.scene.file.output.passes
+    }
+
     /// True for a `--preview` run.
     pub fn is_preview(&self) -> bool {
         self.options.preview
@@ -223,9 +230,63 @@ impl Shot {
         Ok(self.prepared()?.plan.frame(k as usize))
     }
 
-    /// Render 0-based frame `k` in memory.
+    /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
     pub fn render_frame(&self, k: u32) -> Result<Frame, SceneError> {
-        Ok(render::render_frame(&self.settings(k)?, &self.blobs(k)?))
+        self.image(k, &self.settings(k)?, &self.blobs(k)?)
+    }
+
+    /// The open shutter of 0-based frame `k` with `time_samples` strata (`shot.shutter` of a
+    /// frame, centred on it), each with the blobs at its time and their centres' velocities
+    /// from the plan; `None` when the shutter is closed or nothing moves while it is open.
+    pub fn shutter(
+        &self,
+        k: u32,
+        time_samples: u32,
+    ) -> Result<Option<render::Shutter>, SceneError> {
+        let spec = &self.scene.file.shot;
+        if spec.shutter <= 0.0 {
+            return Ok(None);
+        }
+        let plan = &self.prepared()?.plan;
+        let t = plan.timeline().time(k as usize);
+        let (centres, stratum) = render::motion_blur::strata(spec.shutter, time_samples, spec.fps);
+        let samples = centres
+            .into_iter()
+            .map(|offset| {
+                let field = crate::animate::VelocityField::of_plan(plan, t + offset);
+                render::TimeSample {
+                    offset,
+                    blobs: plan.at(t + offset),
+                    velocity: field.motions().iter().map(|m| m.velocity).collect(),
+                }
+            })
+            .collect();
+        let shutter = render::Shutter { samples, stratum };
+        Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
+    }
+
+    /// Render 0-based frame `k` from its `settings` and `blobs`: through the open shutter when
+    /// the cloud moves ([`render::render_frame_blurred`]), else the frame as it stands (so a
+    /// closed shutter, or a cloud holding still, gives the same bits).
+    pub fn image(
+        &self,
+        k: u32,
+        settings: &RenderSettings,
+        blobs: &[Blob],
+    ) -> Result<Frame, SceneError> {
+        Ok(match self.shutter(k, settings.quality.time_samples)? {
+            Some(shutter) => render::render_frame_blurred(settings, blobs, &shutter).0,
+            None => self.render_with(settings, blobs),
+        })
+    }
+
+    /// Render `blobs` with `settings`, with the passes if the shot asks for them.
+    pub fn render_with(&self, settings: &RenderSettings, blobs: &[Blob]) -> Frame {
+        if self.passes() {
+            render::render_frame_with_passes(settings, blobs)
+        } else {
+            render::render_frame(settings, blobs)
+        }
     }
 }
 

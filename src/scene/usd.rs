@@ -35,6 +35,8 @@ pub struct Stage {
     pub cameras: Vec<CameraFrame>,
     /// Near and far clipping distances.
     pub clipping: [f64; 2],
+    /// Open shutter as a fraction of a frame, centred on it (`shot.shutter`; 0 = closed).
+    pub shutter: f64,
     /// The sun.
     pub sun: Sun,
     /// The sky.
@@ -64,6 +66,7 @@ pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
         start_frame: shot.number(0),
         cameras,
         clipping: [1e-3 * length, 1e3 * length],
+        shutter: scene.file.shot.shutter,
         sun: scene.file.sun,
         sky: scene.file.sky,
         vdb_paths,
@@ -156,6 +159,17 @@ fn camera(s: &mut String, stage: &Stage) {
         num(far)
     );
     let _ = writeln!(s, "        token projection = \"perspective\"");
+    // The shutter in frames relative to each frame's time code, centred as nephele's.
+    let _ = writeln!(
+        s,
+        "        double shutter:open = {}",
+        num(-0.5 * stage.shutter)
+    );
+    let _ = writeln!(
+        s,
+        "        double shutter:close = {}",
+        num(0.5 * stage.shutter)
+    );
     let _ = writeln!(s, "        matrix4d xformOp:transform.timeSamples = {{");
     for (k, c) in stage.cameras.iter().enumerate() {
         // Camera to world: local +X right, +Y up, +Z backward (it looks down −Z).
