@@ -9,6 +9,7 @@
 mod exr_support;
 
 mod builtin_scenes;
+mod look_support;
 use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
@@ -757,45 +758,7 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
 /// Pixels whose centre is within `dilate` pixels of the projected mesh.
 fn silhouette(s: &RenderSettings, mesh: &nephele::mesh::Mesh, dilate: f32) -> Vec<bool> {
     let (w, h) = (s.width as usize, s.height as usize);
-    let cam = nephele::render::camera::CameraRays::new(&s.camera, s.width, s.height);
-    // Image position of a world point: find (px, py) whose ray direction matches.
-    let centre = cam.dir(0.5 * w as f32, 0.5 * h as f32);
-    let dx = cam.dir(0.5 * w as f32 + 1.0, 0.5 * h as f32) - centre;
-    let dy = cam.dir(0.5 * w as f32, 0.5 * h as f32 + 1.0) - centre;
-    let project = |p: glam::DVec3| {
-        let v = Vec3A::from(p.as_vec3()) - cam.position;
-        let v = v / v.dot(centre);
-        let r = v - centre;
-        (
-            0.5 * w as f32 + r.dot(dx) / dx.length_squared(),
-            0.5 * h as f32 + r.dot(dy) / dy.length_squared(),
-        )
-    };
-    let pts: Vec<(f32, f32)> = mesh.positions.iter().map(|&p| project(p)).collect();
-    let mut cover = vec![false; w * h];
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| pts[i as usize]);
-        let (x0, x1) = (a.0.min(b.0).min(c.0), a.0.max(b.0).max(c.0));
-        let (y0, y1) = (a.1.min(b.1).min(c.1), a.1.max(b.1).max(c.1));
-        let cross = |p: (f32, f32), q: (f32, f32), r: (f32, f32)| {
-            (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0)
-        };
-        let area = cross(a, b, c);
-        for y in (y0.floor().max(0.0) as usize)..=(y1.ceil().min(h as f32 - 1.0) as usize) {
-            for x in (x0.floor().max(0.0) as usize)..=(x1.ceil().min(w as f32 - 1.0) as usize) {
-                let p = (x as f32 + 0.5, y as f32 + 0.5);
-                let (u, v, z) = (cross(b, c, p), cross(c, a, p), cross(a, b, p));
-                let inside = if area >= 0.0 {
-                    u >= 0.0 && v >= 0.0 && z >= 0.0
-                } else {
-                    u <= 0.0 && v <= 0.0 && z <= 0.0
-                };
-                if inside {
-                    cover[y * w + x] = true;
-                }
-            }
-        }
-    }
+    let cover = look_support::project_mesh(s, mesh).px;
     let r = dilate.ceil() as i64;
     let mut out = vec![false; w * h];
     for y in 0..h as i64 {

@@ -154,25 +154,20 @@ impl SkyDome {
         }
     }
 
-    /// Irradiance on a horizontal plane from the sky above, `∫ L cos θ dω` (midpoint rule on
-    /// the grid of [`SkyDome::hemisphere_mean`]: uniform solid angle, `cos θ = y`).
+    /// Irradiance on a horizontal plane from the sky above, `∫ L cos θ dω`
+    /// (`2π × ` the mean of `L·y` over uniform solid angle).
     fn irradiance_from_above(&self) -> Vec3 {
-        let (ny, nphi) = (16, 32);
-        let mut sum = Vec3::ZERO;
-        for i in 0..ny {
-            let y = (i as f32 + 0.5) / ny as f32;
-            let r = (1.0 - y * y).sqrt();
-            for j in 0..nphi {
-                let phi = 2.0 * PI * (j as f32 + 0.5) / nphi as f32;
-                sum += self.radiance(Vec3::new(r * phi.cos(), y, r * phi.sin())) * y;
-            }
-        }
-        sum * (2.0 * PI / (ny * nphi) as f32)
+        self.hemisphere_average(1.0, |y| y) * (2.0 * PI)
     }
 
-    /// Mean radiance over the hemisphere `sign·y > 0` (uniform in `y` and azimuth: uniform
-    /// solid angle), by the midpoint rule on a 16 × 32 grid.
+    /// Mean radiance over the hemisphere `sign·y > 0` (uniform solid angle).
     fn hemisphere_mean(&self, sign: f32) -> Vec3 {
+        self.hemisphere_average(sign, |_| 1.0)
+    }
+
+    /// Mean of `radiance · weight(|y|)` over the hemisphere `sign·y > 0`, uniform in `y` and
+    /// azimuth (uniform solid angle), by the midpoint rule on a 16 × 32 grid.
+    fn hemisphere_average(&self, sign: f32, weight: impl Fn(f32) -> f32) -> Vec3 {
         let (ny, nphi) = (16, 32);
         let mut sum = Vec3::ZERO;
         for i in 0..ny {
@@ -180,7 +175,7 @@ impl SkyDome {
             let r = (1.0 - y * y).sqrt();
             for j in 0..nphi {
                 let phi = 2.0 * PI * (j as f32 + 0.5) / nphi as f32;
-                sum += self.radiance(Vec3::new(r * phi.cos(), sign * y, r * phi.sin()));
+                sum += self.radiance(Vec3::new(r * phi.cos(), sign * y, r * phi.sin())) * weight(y);
             }
         }
         sum / (ny * nphi) as f32
