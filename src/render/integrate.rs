@@ -266,6 +266,7 @@ pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>
                 }
             }
             if sigma <= 0.0 {
+                counters::add(Counter::EmptyFine, 1);
                 s += len;
                 continue;
             }
