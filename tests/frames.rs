@@ -593,15 +593,7 @@ fn windows_and_channels(
     ((i32, i32), (usize, usize)),
     BTreeMap<String, Vec<f32>>,
 ) {
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_file(path)
-        .unwrap();
+    let image = exr_support::read_image(path);
     let d = image.attributes.display_window;
     let layer = &image.layer_data[0];
     let p = layer.attributes.layer_position;
@@ -703,9 +695,12 @@ fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Per pixel, the `(id, coverage)` ranks of a Cryptomatte layer.
+type Ranks = Vec<Vec<(f32, f32)>>;
+
 /// The Cryptomatte layer of an EXR decoded: the manifest (name → id), and per pixel the
 /// `(id, coverage)` ranks; checks the header's keys and that every id is the hash of its name.
-fn cryptomatte(path: &Path) -> (BTreeMap<String, f32>, Vec<Vec<(f32, f32)>>) {
+fn cryptomatte(path: &Path) -> (BTreeMap<String, f32>, Ranks) {
     use nephele::render::cryptomatte::{layer_key, name_id};
     let layer = exr_support::read_first_layer(path);
     let key = layer_key("CryptoObject");
