@@ -7,7 +7,7 @@
 //! The full table at the scenes' own size:
 //! `cargo test --release --test look -- --ignored --nocapture look_table` (with
 //! `NEPHELE_LOOK_DIR=DIR` it also writes the frames there as PNG; `NEPHELE_LOOK_SCENES=a,b`
-//! limits it to those scenes, `NEPHELE_LOOK_FINAL=1` to the final frames).
+//! limits it to those scenes, `NEPHELE_LOOK_FINAL=1` to the final frames, `NEPHELE_LOOK_FRAMES=12,36` to those frames).
 
 mod builtin_scenes;
 mod look_support;
@@ -109,7 +109,11 @@ fn look_table() {
         {
             continue;
         }
+        let listed: Option<Vec<u32>> = std::env::var("NEPHELE_LOOK_FRAMES")
+            .ok()
+            .map(|l| l.split(',').filter_map(|f| f.trim().parse().ok()).collect());
         let pick = |n: u32| match (finals, name) {
+            _ if listed.is_some() => listed.clone().unwrap_or_default(),
             (true, _) => vec![n],
             (_, "duck-diffusion") => vec![12, 36, n / 2, n],
             _ => vec![n / 5, n / 2, n],

@@ -31,9 +31,12 @@
 //!   brings category III; its length is the motion's share of the volume III adds (the early
 //!   shape's share counted within [0.2, 0.8]), at least `final_grow_seconds`; with
 //!   `Progressive`, at least half the motion. `Together` grows all of III at once over the
-//!   final part as the blend progresses, as the paper says ("finally added together"); the
-//!   blend's progress is paced by its volume, sampled at plan time, so that the volume rises
-//!   evenly. `Progressive` starts III's blobs at evenly spaced times over it, each growing
+//!   final part as the blend progresses, as the paper says ("finally added together").
+//!   The blend has two progresses, III's growth and I/II's `B` going from early to fitted
+//!   (geometrically); the plan samples the visible volume over both on a 17 × 17 grid and
+//!   follows the path along which it never decreases (`blend.rs`), paced so that it rises
+//!   evenly: III grows into the space the early ellipsoids held before they withdraw from
+//!   it. `Progressive` starts III's blobs at evenly spaced times over it, each growing
 //!   over `grow_seconds`.
 //! - **Growth.** A new blob starts at the centre of its parent — the nearest blob placed
 //!   before it (nearest in that blob's ellipsoidal radius, so a long blob's far end counts as
@@ -41,18 +44,20 @@
 //!   its offset from its parent's *current* centre grows with its size, so a chain of III
 //!   blobs (a leg) grows out as a scaled copy of itself about its root. A III blob's `B²`
 //!   rises from zero with the blend, so it adds to the field gently. Before it starts, a blob
-//!   is hidden (`B = 0`). The visible count never decreases.
+//!   is hidden (`B = 0`). The visible count never decreases, and with `Together` neither
+//!   does the visible volume.
 //!
 //! Where the early cloud would hold more than 90 % of the final volume (it is fuller than the
 //! target in places and would have to shrink into it), its blobs are weakened to
-//! `B = γ·(1+A)/A`, `γ` stepping down by 0.05 to at least 0.8.
+//! `B = γ·(1+A)/A`, `γ` stepping down by 0.05 to at least 0.5: a cloud that starts fuller
+//! than its target cannot grow into it without shrinking somewhere.
 //!
 //! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
-//! every frame, at most a third of the final volume added per second; the volume dips while
-//! the early cloud blends into the fitted one (up to 12 % of the final for the duck, 13 % for
-//! the horse).
+//! every frame, at most a third of the final volume added per second, and no frame with less
+//! visible volume than the frame before (1 % lattice).
 
 use glam::DVec3;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::pieces::nearest_blob;
@@ -60,8 +65,10 @@ use super::stats::{Lattice, visible_volume};
 use super::{AnimateError, Timeline, blob_bounds, check_fraction, check_seconds, lerp, smoothstep};
 use crate::blobby::Blob;
 
+mod blend;
 mod order;
 
+use blend::{BlendPath, GRID_STEPS};
 use order::order_by_nearest;
 pub use order::{category_ii_count, display_order};
 
@@ -72,8 +79,8 @@ const SEED_SIZE: f64 = 0.35;
 /// lowered.
 const EARLY_SHARE_MAX: f64 = 0.9;
 
-/// Samples of the blend's volume taken at plan time (for its pace).
-const BLEND_SAMPLES: usize = 8;
+/// Weakest early strength `γ` tried (`B = γ·(1+A)/A`).
+const MIN_EARLY_STRENGTH: f64 = 0.5;
 
 /// Share of the final span in which category III grows to full size (`Together`); its `B²`
 /// keeps rising with the blend over the whole span.
@@ -160,9 +167,12 @@ pub struct DiffusionPlan {
     /// When category III starts arriving and the early shape blends to the fitted one.
     blend_start: f64,
     blend_seconds: f64,
-    /// `(eased time, progress)` knots of the blend, so the volume rises evenly (empty: the
-    /// identity).
-    pace_knots: Vec<(f64, f64)>,
+    /// The blend's path through (III's progress, I/II's progress to the fitted `B`) in eased
+    /// time, so the volume never decreases and rises evenly (empty: both the eased time).
+    path: BlendPath,
+    /// Largest drop of the visible volume (cells of the plan's 2 % lattice) along the path's
+    /// nodes (0: none).
+    path_drop: f64,
     /// Category III arrives together (its growth follows the blend progress).
     together: bool,
     /// Volume of categories I and II as shown, over the final volume (2 % lattice; NaN when
@@ -185,29 +195,48 @@ impl DiffusionPlan {
         };
         let mut plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, strength);
         // Where the early cloud would be fuller than the target, it would have to shrink into
-        // it: weaken it (γ down to 0.8) until it holds at most 90 % of the final volume.
+        // it: weaken it (γ down to 0.5) until it holds at most 90 % of the final volume.
         let mut gamma = strength;
-        while strength > 0.0 && plan.early_share > EARLY_SHARE_MAX && gamma > 0.8 + 1e-9 {
+        while strength > 0.0
+            && plan.early_share > EARLY_SHARE_MAX
+            && gamma > MIN_EARLY_STRENGTH + 1e-9
+        {
             gamma -= 0.05;
             plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, gamma);
         }
         if plan.together {
-            plan.pace_knots = pace_knots(&plan.blend_volumes(threshold));
+            let (path, drop) = BlendPath::least_dropping(&plan.blend_volumes(threshold));
+            plan.path = path;
+            plan.path_drop = drop;
         }
         plan
     }
 
-    /// Visible volume (cells of a 2 % lattice) at evenly spaced blend progresses, at the
-    /// blend's end time.
-    fn blend_volumes(&self, threshold: f64) -> Vec<f64> {
+    /// Visible volume (cells of a 2 % lattice) on the `GRID_STEPS` grid of (III's progress,
+    /// I/II's progress to the fitted `B`), at the blend's end time (III arriving `Together`
+    /// depends on the progresses only).
+    fn blend_volumes(&self, threshold: f64) -> Vec<Vec<f64>> {
         let lattice = Lattice::for_target(&blob_bounds(&self.target), 0.02);
         let t = self.blend_start + self.blend_seconds;
-        (0..=BLEND_SAMPLES)
-            .map(|j| {
-                let w = j as f64 / BLEND_SAMPLES as f64;
-                visible_volume(&self.frame_with(t, w), threshold, lattice).voxels as f64
+        let n = GRID_STEPS;
+        (0..=n)
+            .into_par_iter()
+            .map(|i| {
+                (0..=n)
+                    .map(|j| {
+                        let (detail, fitted) = (i as f64 / n as f64, j as f64 / n as f64);
+                        let blobs = self.frame_with(t, detail, fitted);
+                        visible_volume(&blobs, threshold, lattice).voxels as f64
+                    })
+                    .collect()
             })
             .collect()
+    }
+
+    /// Largest drop of the visible volume along the blend path's nodes, in cells of the
+    /// plan's 2 % lattice (0: it never decreases there; NaN unless III arrives `Together`).
+    pub fn blend_drop(&self) -> f64 {
+        self.path_drop
     }
 
     /// [`DiffusionPlan::new`] with the early blobs' strength `γ` (`B = γ·(1+A)/A`; 0: the
@@ -303,7 +332,8 @@ impl DiffusionPlan {
             grow,
             blend_start,
             blend_seconds: g3,
-            pace_knots: Vec::new(),
+            path: BlendPath::default(),
+            path_drop: f64::NAN,
             early_share,
             together: cfg.category_iii == DetailArrival::Together,
             timeline,
@@ -349,29 +379,14 @@ impl DiffusionPlan {
         } else {
             0.0
         };
-        self.frame_with(t, self.pace(lerp(u, smoothstep(u), 0.5)))
+        let (detail, fitted) = self.path.at(lerp(u, smoothstep(u), 0.5));
+        self.frame_with(t, detail, fitted)
     }
 
-    /// Blend progress at eased blend time `u ∈ [0, 1]`: piecewise linear through the knots.
-    fn pace(&self, u: f64) -> f64 {
-        let k = &self.pace_knots;
-        if k.len() < 2 || u <= 0.0 {
-            return u.clamp(0.0, 1.0);
-        }
-        let seg = k
-            .windows(2)
-            .position(|w| u <= w[1].0)
-            .unwrap_or(k.len() - 2);
-        let ((u0, p0), (u1, p1)) = (k[seg], k[seg + 1]);
-        if u1 <= u0 {
-            return p1;
-        }
-        lerp(p0, p1, ((u - u0) / (u1 - u0)).clamp(0.0, 1.0))
-    }
-
-    /// The blobs at `t` seconds with blend progress `w` (the fitted parameters' weight; it
-    /// also drives category III's growth when it arrives `Together`).
-    fn frame_with(&self, t: f64, w: f64) -> Vec<Blob> {
+    /// The blobs at `t` seconds with category III at progress `detail` (its `B²` weight, and
+    /// its growth when it arrives `Together`) and categories I and II at progress `fitted`
+    /// from their early `B²` to the fitted one.
+    fn frame_with(&self, t: f64, detail: f64, fitted: f64) -> Vec<Blob> {
         let mut out = self.target.clone();
         // In display order, so a parent's current centre is known before its children's.
         for &i in &self.order {
@@ -389,7 +404,7 @@ impl DiffusionPlan {
                 continue;
             }
             let mut e = if self.detail[i] && self.together {
-                smoothstep(w / DETAIL_GROWTH_SHARE)
+                smoothstep(detail / DETAIL_GROWTH_SHARE)
             } else if g <= 0.0 {
                 1.0
             } else {
@@ -406,9 +421,9 @@ impl DiffusionPlan {
             }
             let b = if self.detail[i] {
                 // III adds to the field gently: B² rises with the blend.
-                blob.b * w.sqrt()
+                blob.b * detail.sqrt()
             } else {
-                lerp(self.early_b[i].powi(2), blob.b.powi(2), w).sqrt()
+                blend_b(self.early_b[i], blob.b, fitted)
             };
             // The offset from the parent grows with the size: a chain of growing blobs is a
             // scaled copy of its final shape about its root.
@@ -428,29 +443,16 @@ impl DiffusionPlan {
     }
 }
 
-/// Knots `(eased time, progress)` through which the blend's volume, sampled at evenly spaced
-/// progresses (`volumes`, made non-decreasing by a running maximum), rises evenly in time.
-/// Empty (the identity) when the volume does not grow.
-fn pace_knots(volumes: &[f64]) -> Vec<(f64, f64)> {
-    let n = volumes.len();
-    if n < 2 {
-        return Vec::new();
+/// `B` part way (`fitted` ∈ [0, 1]) from the early `early` to the fitted `b`: geometric, so
+/// the field changes at an even relative rate (the early `B²` is often tens of times the
+/// fitted one, and a linear blend would do most of its shrinking in its last few percent);
+/// linear in `B²` when either is 0.
+fn blend_b(early: f64, b: f64, fitted: f64) -> f64 {
+    if early > 0.0 && b > 0.0 {
+        early * (b / early).powf(fitted)
+    } else {
+        lerp(early * early, b * b, fitted).sqrt()
     }
-    let mut v = volumes.to_vec();
-    for k in 1..n {
-        v[k] = v[k].max(v[k - 1]);
-    }
-    let (v0, v1) = (v[0], v[n - 1]);
-    if v1 <= v0 {
-        return Vec::new();
-    }
-    (0..n)
-        .map(|k| {
-            let p = k as f64 / (n - 1) as f64;
-            // Mostly by volume, a little by progress, so no stretch of the blend is instant.
-            (0.8 * (v[k] - v0) / (v1 - v0) + 0.2 * p, p)
-        })
-        .collect()
 }
 
 /// The blobs with `B = γ·(1+A)/A` (`γ` = `strength`; 1 shows an isolated blob at its

@@ -1,0 +1,241 @@
+//! The blend of the early cloud into the fitted target, as a path through two progresses:
+//! `detail` (category III's growth and strength) and `fitted` (categories I and II going from
+//! their early `B` to the fitted one).
+//!
+//! Blending both at once loses volume: the early ellipsoids cover space that the fitted model
+//! gives to category III, and they withdraw before III has grown into it (the duck lost 9 % of
+//! the final volume that way). So the plan samples the visible volume `V(detail, fitted)` on a
+//! grid at plan time and takes the monotone lattice path from `(0, 0)` to `(1, 1)` whose
+//! largest step down in volume is smallest — zero where such a path exists, so the volume never
+//! decreases at the grid's nodes. Time is then spent along the path in proportion to the volume
+//! it adds (with a share by steps, so no stretch is instant): the volume rises evenly.
+
+use super::lerp;
+
+/// Grid steps per progress axis (17 × 17 volumes at plan time).
+pub(super) const GRID_STEPS: usize = 16;
+
+/// Share of the blend's time spent in proportion to path steps rather than to volume.
+const STEP_SHARE: f64 = 0.2;
+
+/// One point of the blend path: at eased blend time `u`, the two progresses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct BlendKnot {
+    /// Eased blend time in `[0, 1]`.
+    pub u: f64,
+    /// Category III's progress in `[0, 1]`.
+    pub detail: f64,
+    /// Categories I and II's progress from the early `B` to the fitted one, in `[0, 1]`.
+    pub fitted: f64,
+}
+
+/// The blend as a piecewise-linear path of knots (time-ordered, from `(0, 0, 0)` to
+/// `(1, 1, 1)`); empty means both progresses equal the eased time.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct BlendPath {
+    knots: Vec<BlendKnot>,
+}
+
+impl BlendPath {
+    /// The least-dropping monotone path through `grid` (`grid[i][j]` = volume at detail
+    /// `i / n`, fitted `j / n`, a square of side `n + 1`), paced by its volumes. Also returns
+    /// the largest step down along it (0: never decreases at the nodes).
+    pub fn least_dropping(grid: &[Vec<f64>]) -> (BlendPath, f64) {
+        let (cells, drop) = least_dropping_path(grid);
+        let n = (grid.len().max(2) - 1) as f64;
+        let nodes: Vec<(f64, f64)> = cells
+            .iter()
+            .map(|&(i, j)| (i as f64 / n, j as f64 / n))
+            .collect();
+        let volumes: Vec<f64> = cells.iter().map(|&(i, j)| grid[i][j]).collect();
+        (BlendPath::paced(&nodes, &volumes), drop)
+    }
+
+    /// Knots through `nodes` (progress pairs) whose times share the volume added
+    /// (`1 − STEP_SHARE`) and the steps (`STEP_SHARE`).
+    fn paced(nodes: &[(f64, f64)], volumes: &[f64]) -> BlendPath {
+        let n = nodes.len();
+        if n < 2 || volumes.len() != n {
+            return BlendPath::default();
+        }
+        let mut v = volumes.to_vec();
+        for k in 1..n {
+            v[k] = v[k].max(v[k - 1]);
+        }
+        let rise = v[n - 1] - v[0];
+        let knots = (0..n)
+            .map(|k| {
+                let steps = k as f64 / (n - 1) as f64;
+                let by_volume = if rise > 0.0 {
+                    (v[k] - v[0]) / rise
+                } else {
+                    steps
+                };
+                BlendKnot {
+                    u: (1.0 - STEP_SHARE) * by_volume + STEP_SHARE * steps,
+                    detail: nodes[k].0,
+                    fitted: nodes[k].1,
+                }
+            })
+            .collect();
+        BlendPath { knots }
+    }
+
+    /// `(detail, fitted)` at eased blend time `u` (clamped to `[0, 1]`).
+    pub fn at(&self, u: f64) -> (f64, f64) {
+        let u = u.clamp(0.0, 1.0);
+        let k = &self.knots;
+        if k.len() < 2 {
+            return (u, u);
+        }
+        let seg = k
+            .windows(2)
+            .position(|w| u <= w[1].u)
+            .unwrap_or(k.len() - 2);
+        let (a, b) = (k[seg], k[seg + 1]);
+        let s = if b.u > a.u {
+            ((u - a.u) / (b.u - a.u)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        (lerp(a.detail, b.detail, s), lerp(a.fitted, b.fitted, s))
+    }
+}
+
+/// The lattice path from `(0, 0)` to `(n, n)` through `grid` (steps `(1, k)` for any `k ≥ 0`,
+/// or `(0, 1)`) that minimises the largest drop `grid[prev] − grid[next]` along it, then the
+/// sum of its drops, then its length; ties go to the predecessor tried first (row before, from
+/// its first column). Returns
+/// the cells and the largest drop (0 when the volume never decreases along it).
+fn least_dropping_path(grid: &[Vec<f64>]) -> (Vec<(usize, usize)>, f64) {
+    let n = grid.len();
+    if n == 0 {
+        return (Vec::new(), 0.0);
+    }
+    // (largest drop, sum of drops, steps) to reach each cell, and the step taken into it.
+    let mut cost = vec![vec![(f64::INFINITY, f64::INFINITY, usize::MAX); n]; n];
+    let mut from = vec![vec![(0usize, 0usize); n]; n];
+    cost[0][0] = (0.0, 0.0, 0);
+    for i in 0..n {
+        for j in 0..n {
+            if i == 0 && j == 0 {
+                continue;
+            }
+            // From the row before at any column up to this one (III's progress one step, I/II's
+            // any number: where III adds much per step, I/II can blend far), or from the
+            // column before in this row.
+            let from_row = (0..=j).filter(|_| i > 0).map(|pj| (i - 1, pj));
+            let preds = from_row.chain((j > 0).then(|| (i, j - 1)));
+            for (pi, pj) in preds {
+                let (worst, sum, steps) = cost[pi][pj];
+                let drop = (grid[pi][pj] - grid[i][j]).max(0.0);
+                let c = (worst.max(drop), sum + drop, steps + 1);
+                if better(c, cost[i][j]) {
+                    cost[i][j] = c;
+                    from[i][j] = (pi, pj);
+                }
+            }
+        }
+    }
+    let mut cells = vec![(n - 1, n - 1)];
+    while cells.last() != Some(&(0, 0)) {
+        let &(i, j) = cells.last().unwrap_or(&(0, 0));
+        cells.push(from[i][j]);
+    }
+    cells.reverse();
+    (cells, cost[n - 1][n - 1].0)
+}
+
+/// Lexicographic order on (largest drop, sum of drops, steps); a strict improvement only, so
+/// the first predecessor tried wins ties.
+fn better(a: (f64, f64, usize), b: (f64, f64, usize)) -> bool {
+    if a.0 != b.0 {
+        return a.0 < b.0;
+    }
+    if a.1 != b.1 {
+        return a.1 < b.1;
+    }
+    a.2 < b.2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The duck's measured volumes (rows detail 0..1, columns fitted 0..1, step 1/8): blending
+    /// both at once dips; the chosen path never decreases.
+    fn duck_grid() -> Vec<Vec<f64>> {
+        [
+            [
+                0.804, 0.773, 0.739, 0.703, 0.664, 0.617, 0.567, 0.499, 0.194,
+            ],
+            [
+                0.804, 0.773, 0.739, 0.703, 0.664, 0.617, 0.567, 0.499, 0.194,
+            ],
+            [
+                0.804, 0.773, 0.739, 0.703, 0.664, 0.617, 0.567, 0.499, 0.204,
+            ],
+            [
+                0.808, 0.778, 0.746, 0.712, 0.676, 0.634, 0.586, 0.518, 0.286,
+            ],
+            [
+                0.867, 0.842, 0.814, 0.786, 0.755, 0.721, 0.681, 0.627, 0.473,
+            ],
+            [
+                1.009, 0.988, 0.966, 0.941, 0.917, 0.889, 0.858, 0.818, 0.723,
+            ],
+            [
+                1.095, 1.077, 1.057, 1.037, 1.015, 0.990, 0.962, 0.928, 0.855,
+            ],
+            [
+                1.144, 1.127, 1.109, 1.089, 1.069, 1.047, 1.022, 0.989, 0.929,
+            ],
+            [
+                1.191, 1.175, 1.159, 1.141, 1.122, 1.102, 1.078, 1.051, 1.000,
+            ],
+        ]
+        .iter()
+        .map(|r| r.to_vec())
+        .collect()
+    }
+
+    #[test]
+    fn the_diagonal_dips_and_the_chosen_path_does_not() {
+        let g = duck_grid();
+        let diagonal_drop = (1..g.len())
+            .map(|k| g[k - 1][k - 1] - g[k][k])
+            .fold(0.0, f64::max);
+        assert!(
+            diagonal_drop > 0.01,
+            "the diagonal should dip: {diagonal_drop}"
+        );
+        let (cells, drop) = least_dropping_path(&g);
+        assert_eq!(drop, 0.0);
+        assert_eq!(cells.first(), Some(&(0, 0)));
+        assert_eq!(cells.last(), Some(&(8, 8)));
+        for w in cells.windows(2) {
+            let ((a, b), (c, d)) = (w[0], w[1]);
+            assert!(c >= a && d >= b && c - a <= 1 && (c, d) != (a, b));
+            assert!(c > a || d == b + 1);
+            assert!(g[c][d] >= g[a][b], "{:?} → {:?} drops", w[0], w[1]);
+        }
+    }
+
+    #[test]
+    fn the_path_is_paced_by_volume_and_runs_corner_to_corner() {
+        let (path, _) = BlendPath::least_dropping(&duck_grid());
+        assert_eq!(path.at(0.0), (0.0, 0.0));
+        assert_eq!(path.at(1.0), (1.0, 1.0));
+        let mut last = (0.0, 0.0);
+        for k in 0..=100 {
+            let p = path.at(k as f64 / 100.0);
+            assert!(p.0 >= last.0 && p.1 >= last.1, "progress goes back at {k}");
+            last = p;
+        }
+    }
+
+    #[test]
+    fn an_empty_path_is_the_identity() {
+        assert_eq!(BlendPath::default().at(0.3), (0.3, 0.3));
+    }
+}
