@@ -406,8 +406,10 @@ fn allocated<T>(f: impl FnOnce() -> T) -> (T, u64) {
 fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     use nephele::render::counters;
     let m = BlobMedium::new(s, blobs);
+    // The light grid samples the medium without the billows it cannot hold, as a frame's does.
+    let lattice = m.for_lattice(s.quality.shadow_grid);
     counters::take();
-    let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &m));
+    let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &lattice));
     let light = counters::take();
     let (_, march_bytes) = allocated(|| render_medium(s, &m, &grid));
     let march = counters::take();
@@ -419,7 +421,9 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     });
     let sun_s = median(
         (0..3)
-            .map(|_| time(|| nephele::render::sun_grid::SunGrid::build(&m, sun_dir, h, None)).1)
+            .map(|_| {
+                time(|| nephele::render::sun_grid::SunGrid::build(&lattice, sun_dir, h, None)).1
+            })
             .collect(),
     );
     println!("  of which the sun's columns {sun_s:.3} s");
@@ -440,12 +444,14 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     for (part, c) in [("light grid", light), ("march", march)] {
         let samples = c[0] + c[1];
         println!(
-            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks, {:.2} M shaded samples",
+            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing",
             m(samples),
             c[2] as f64 / samples.max(1) as f64,
             c[3] as f64 / samples.max(1) as f64,
             m(c[4]),
+            m(c[6]),
             m(c[5]),
+            m(c[7]),
         );
     }
 }
@@ -484,12 +490,13 @@ fn bench_frame_times() {
                 .collect(),
         );
         let m = BlobMedium::new(&s, &blobs);
+        let lattice = m.for_lattice(s.quality.shadow_grid);
         let light = median(
             (0..runs)
-                .map(|_| time(|| LightGrid::for_frame(&s, &m)).1)
+                .map(|_| time(|| LightGrid::for_frame(&s, &lattice)).1)
                 .collect(),
         );
-        let grid = LightGrid::for_frame(&s, &m);
+        let grid = LightGrid::for_frame(&s, &lattice);
         let march = median(
             (0..runs)
                 .map(|_| time(|| render_medium(&s, &m, &grid)).1)

@@ -23,10 +23,14 @@ pub enum Counter {
     NoiseEvals,
     /// March samples shaded (a light lookup and the in-scattering).
     ShadedSamples,
+    /// Billow octaves evaluated (one gradient noise each, per blob of the blend).
+    NoiseOctaves,
+    /// March samples inside the medium's shape (fine steps) that found no extinction.
+    EmptyFine,
 }
 
 /// Number of [`Counter`]s.
-pub const COUNTERS: usize = 6;
+pub const COUNTERS: usize = 8;
 
 /// Names in [`Counter`] order.
 pub const NAMES: [&str; COUNTERS] = [
@@ -36,6 +40,8 @@ pub const NAMES: [&str; COUNTERS] = [
     "hits ended",
     "noise stacks",
     "shaded samples",
+    "noise octaves",
+    "empty fine samples",
 ];
 
 #[cfg(feature = "counters")]

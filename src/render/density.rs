@@ -185,8 +185,15 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             let f = h.b2 * w * w;
             grad += h.a_t * q * (h.b2 * w);
             g += f;
-            fmax = fmax.max(f);
-            reach = reach.max(w * h.half_min_support);
+            // `f` and the reach are finite and ≥ 0: a plain comparison (no NaN handling)
+            // gives `max`'s value.
+            if f > fmax {
+                fmax = f;
+            }
+            let r = w * h.half_min_support;
+            if r > reach {
+                reach = r;
+            }
             if n < MAX_ACTIVE {
                 act[n] = (f, k as u32);
                 n += 1;
@@ -206,6 +213,21 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
     if !(g > 0.0 && g.is_finite()) {
         return (0.0, false);
     }
+    // Signed depth below the iso-surface: the first-order distance of `√g`'s level 1,
+    // `(√g − 1)/|∇√g| = 2(g − √g)/|∇g|` (`grad` is ∇G / −4). `√g` of one blob is linear in
+    // `1 − |q|²`, so this stays a fair distance deep inside a strong blob, where `(g − 1)/|∇g|`
+    // saturates near a fifth of its radius and the creases would hollow it out.
+    let d = 2.0 * (g - g.sqrt()) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
+    // Beyond the reach or below the depth of the deepest billows any part could have, the
+    // answer is [`DensityParams::extinction`]'s first two (the bound is monotone in every
+    // rounding): no feature size, no octave depths needed.
+    let most = p.billows.max_total();
+    if d + ((1.0 - CREASE) * most).min(reach) <= 0.0 {
+        return (0.0, false);
+    }
+    if d - CREASE * most >= p.edge {
+        return (p.sigma, true);
+    }
     let (mut fsum, mut wsum) = (0.0, 0.0);
     for &(f, k) in &act[..n] {
         let w = f - 0.5 * fmax;
@@ -214,11 +236,6 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
             wsum += w;
         }
     }
-    // Signed depth below the iso-surface: the first-order distance of `√g`'s level 1,
-    // `(√g − 1)/|∇√g| = 2(g − √g)/|∇g|` (`grad` is ∇G / −4). `√g` of one blob is linear in
-    // `1 − |q|²`, so this stays a fair distance deep inside a strong blob, where `(g − 1)/|∇g|`
-    // saturates near a fifth of its radius and the creases would hollow it out.
-    let d = 2.0 * (g - g.sqrt()) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
     p.extinction(d, fsum / wsum, reach, |depths, octaves, settled| {
         let mut points = [Vec3A::ZERO; MAX_ACTIVE];
         let mut weights = [0.0f32; MAX_ACTIVE];

@@ -357,6 +357,7 @@ pub(super) fn march<
                 }
             }
             if sigma <= 0.0 {
+                counters::add(Counter::EmptyFine, 1);
                 s += len;
                 continue;
             }

@@ -9,17 +9,25 @@
 
 use glam::Vec3A;
 
-/// Lattice hash of an integer point: a few multiply-xorshift rounds, well mixed in the low bits.
+/// Multipliers of the lattice hash, one per axis.
+const HASH_AXES: [u32; 3] = [0x8DA6_B343, 0xD816_3841, 0xCB1A_B31F];
+
+/// The lattice hash's mixing rounds (a few multiply-xorshifts, well mixed in the low bits) of
+/// `h = i·A ^ j·B ^ k·C`.
 #[inline]
-fn hash3(i: i32, j: i32, k: i32) -> u32 {
-    let mut h = (i as u32).wrapping_mul(0x8DA6_B343)
-        ^ (j as u32).wrapping_mul(0xD816_3841)
-        ^ (k as u32).wrapping_mul(0xCB1A_B31F);
+fn mix(mut h: u32) -> u32 {
     h ^= h >> 15;
     h = h.wrapping_mul(0x2C1B_3C6D);
     h ^= h >> 12;
     h = h.wrapping_mul(0x297A_2D39);
     h ^ (h >> 15)
+}
+
+/// Lattice hash of an integer point.
+#[inline]
+fn hash3(i: i32, j: i32, k: i32) -> u32 {
+    let [a, b, c] = HASH_AXES;
+    mix((i as u32).wrapping_mul(a) ^ (j as u32).wrapping_mul(b) ^ (k as u32).wrapping_mul(c))
 }
 
 /// Dot product of the offset `(x, y, z)` with one of Perlin's 12 edge gradients (16 entries,
@@ -50,8 +58,25 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 }
 
 /// Improved Perlin gradient noise at `p`: zero on the integer lattice, about `[−1, 1]`.
+///
+/// On x86-64 the eight corners are hashed and dotted four at a time with SSE2 (every x86-64
+/// has it), the same operations in the same order as the portable [`gradient_noise_scalar`],
+/// so the bits are the same on every machine.
 #[inline]
 pub fn gradient_noise(p: Vec3A) -> f32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        sse2::gradient_noise(p)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        gradient_noise_scalar(p)
+    }
+}
+
+/// [`gradient_noise`] one corner at a time (the reference the SIMD version must equal).
+#[inline]
+pub fn gradient_noise_scalar(p: Vec3A) -> f32 {
     let f = p.floor();
     let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
     let r = p - f;
@@ -70,6 +95,108 @@ pub fn gradient_noise(p: Vec3A) -> f32 {
     let x01 = lerp(c(0, 0, 1), c(1, 0, 1), u);
     let x11 = lerp(c(0, 1, 1), c(1, 1, 1), u);
     lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
+}
+
+/// The noise's corners four at a time: lanes `(dj, dk) = (0,0), (1,0), (0,1), (1,1)`, one
+/// vector for `di = 0` and one for `di = 1`. The hash's per-axis products are formed once per
+/// axis (`(i+1)·A = i·A + A` in wrapping arithmetic) and the 32-bit products of the mixing
+/// rounds from SSE2's 32×32→64 multiply.
+#[cfg(target_arch = "x86_64")]
+mod sse2 {
+    use core::arch::x86_64::*;
+
+    use glam::Vec3A;
+
+    use super::{HASH_AXES, fade, lerp};
+
+    /// Low 32 bits of the lane-wise product `a·b` (SSE4.1's `pmulld` from SSE2).
+    #[inline(always)]
+    unsafe fn mullo(a: __m128i, b: __m128i) -> __m128i {
+        unsafe {
+            let even = _mm_mul_epu32(a, b);
+            let odd = _mm_mul_epu32(_mm_srli_epi64::<32>(a), _mm_srli_epi64::<32>(b));
+            _mm_unpacklo_epi32(
+                _mm_shuffle_epi32::<0b00_00_10_00>(even),
+                _mm_shuffle_epi32::<0b00_00_10_00>(odd),
+            )
+        }
+    }
+
+    /// [`super::mix`] lane-wise.
+    #[inline(always)]
+    unsafe fn mix(h: __m128i) -> __m128i {
+        unsafe {
+            let h = _mm_xor_si128(h, _mm_srli_epi32::<15>(h));
+            let h = mullo(h, _mm_set1_epi32(0x2C1B_3C6D));
+            let h = _mm_xor_si128(h, _mm_srli_epi32::<12>(h));
+            let h = mullo(h, _mm_set1_epi32(0x297A_2D39));
+            _mm_xor_si128(h, _mm_srli_epi32::<15>(h))
+        }
+    }
+
+    /// `a` where `mask` is set, else `b`.
+    #[inline(always)]
+    unsafe fn select(mask: __m128, a: __m128, b: __m128) -> __m128 {
+        unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
+    }
+
+    /// [`super::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
+    #[inline(always)]
+    unsafe fn grad(h: __m128i, x: __m128, y: __m128, z: __m128) -> __m128 {
+        unsafe {
+            let h = _mm_and_si128(h, _mm_set1_epi32(15));
+            let below8 = _mm_castsi128_ps(_mm_cmplt_epi32(h, _mm_set1_epi32(8)));
+            let below4 = _mm_castsi128_ps(_mm_cmplt_epi32(h, _mm_set1_epi32(4)));
+            let x_as_v = _mm_castsi128_ps(_mm_or_si128(
+                _mm_cmpeq_epi32(h, _mm_set1_epi32(12)),
+                _mm_cmpeq_epi32(h, _mm_set1_epi32(14)),
+            ));
+            let u = select(below8, x, y);
+            let v = select(below4, y, select(x_as_v, x, z));
+            let su = _mm_slli_epi32::<31>(_mm_and_si128(h, _mm_set1_epi32(1)));
+            let sv = _mm_slli_epi32::<30>(_mm_and_si128(h, _mm_set1_epi32(2)));
+            _mm_add_ps(
+                _mm_xor_ps(u, _mm_castsi128_ps(su)),
+                _mm_xor_ps(v, _mm_castsi128_ps(sv)),
+            )
+        }
+    }
+
+    #[inline]
+    pub(super) fn gradient_noise(p: Vec3A) -> f32 {
+        let f = p.floor();
+        let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
+        let r = p - f;
+        let (x, y, z) = (r.x, r.y, r.z);
+        let (u, v, w) = (fade(x), fade(y), fade(z));
+        let [a, b, c] = HASH_AXES;
+        let hi = (i as u32).wrapping_mul(a);
+        let hj = (j as u32).wrapping_mul(b);
+        let hk = (k as u32).wrapping_mul(c);
+        let (hj1, hk1) = (hj.wrapping_add(b), hk.wrapping_add(c));
+        // SAFETY: SSE2 is part of x86-64.
+        let lanes = unsafe {
+            // `_mm_set_*` lists lanes from the last to the first.
+            let jk = _mm_set_epi32(
+                (hj1 ^ hk1) as i32,
+                (hj ^ hk1) as i32,
+                (hj1 ^ hk) as i32,
+                (hj ^ hk) as i32,
+            );
+            let h0 = mix(_mm_xor_si128(jk, _mm_set1_epi32(hi as i32)));
+            let h1 = mix(_mm_xor_si128(jk, _mm_set1_epi32(hi.wrapping_add(a) as i32)));
+            let ys = _mm_set_ps(y - 1.0, y, y - 1.0, y);
+            let zs = _mm_set_ps(z - 1.0, z - 1.0, z, z);
+            let c0 = grad(h0, _mm_set1_ps(x), ys, zs);
+            let c1 = grad(h1, _mm_set1_ps(x - 1.0), ys, zs);
+            let mixed = _mm_add_ps(c0, _mm_mul_ps(_mm_set1_ps(u), _mm_sub_ps(c1, c0)));
+            let mut out = [0.0f32; 4];
+            _mm_storeu_ps(out.as_mut_ptr(), mixed);
+            out
+        };
+        let [x00, x10, x01, x11] = lanes;
+        lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
+    }
 }
 
 /// Wavelength ratio between billow octaves: slightly off 2 so octave lattices do not line up.
@@ -125,6 +252,13 @@ pub struct Billows {
     drift: [Vec3A; MAX_OCTAVES],
     /// Depth over wavelength of every octave.
     amplitude: f32,
+    /// Feature sizes at and above which octave `k` is surely at full depth (`F/λ_k ≥`
+    /// [`FADE_IN`]`.1`), and at and below which it is surely absent (`≤ FADE_IN.0`), with a
+    /// margin for rounding: between them [`Billows::depths`] divides, outside it need not.
+    full_from: [f32; MAX_OCTAVES],
+    absent_to: [f32; MAX_OCTAVES],
+    /// `Σ_k a·λ_k` (summed in [`Billows::depths`]' order): no part's total depth is larger.
+    max_total: f32,
 }
 
 impl Billows {
@@ -137,6 +271,9 @@ impl Billows {
             wavelength: [0.0; MAX_OCTAVES],
             drift: [Vec3A::ZERO; MAX_OCTAVES],
             amplitude: amplitude.max(0.0),
+            full_from: [f32::INFINITY; MAX_OCTAVES],
+            absent_to: [f32::NEG_INFINITY; MAX_OCTAVES],
+            max_total: 0.0,
         };
         if !(largest > 0.0) || b.amplitude == 0.0 {
             return b;
@@ -151,7 +288,35 @@ impl Billows {
             b.n = o + 1;
             lambda /= LACUNARITY;
         }
+        b.set_bounds();
         b
+    }
+
+    /// The per-octave shortcuts of [`Billows::depths`] and [`Billows::max_total`] for the
+    /// first `n` octaves. The thresholds are the exact products in f64 widened by 10⁻⁶ (far
+    /// more than the one rounding to f32), so that past them the division `F/λ` lands surely
+    /// beyond the fade's ends and the smoothstep is exactly 1 or 0.
+    fn set_bounds(&mut self) {
+        let (lo, hi) = FADE_IN;
+        self.max_total = 0.0;
+        for o in 0..MAX_OCTAVES {
+            if o < self.n {
+                let l = self.wavelength[o] as f64;
+                self.full_from[o] = (hi as f64 * l * (1.0 + 1e-6)) as f32;
+                self.absent_to[o] = (lo as f64 * l * (1.0 - 1e-6)) as f32;
+                self.max_total += self.amplitude * self.wavelength[o];
+            } else {
+                self.full_from[o] = f32::INFINITY;
+                self.absent_to[o] = f32::NEG_INFINITY;
+            }
+        }
+    }
+
+    /// An upper bound of [`Billows::total_depth`] for any feature size (each octave at full
+    /// depth): where even it cannot reach a point, no billow can.
+    #[inline]
+    pub fn max_total(&self) -> f32 {
+        self.max_total
     }
 
     /// The same billows without the octaves finer than `finest` (world units): for sampling
@@ -162,6 +327,7 @@ impl Billows {
             .iter()
             .take_while(|&&l| l >= finest)
             .count();
+        b.set_bounds();
         b
     }
 
@@ -179,8 +345,15 @@ impl Billows {
         let (lo, hi) = FADE_IN;
         for o in 0..self.n {
             let l = self.wavelength[o];
-            let r = ((feature / l - lo) / (hi - lo)).clamp(0.0, 1.0);
-            let s = r * r * (3.0 - 2.0 * r);
+            // Past the fade's ends the smoothstep is exactly 1 or 0: no division.
+            let s = if feature >= self.full_from[o] {
+                1.0
+            } else if feature <= self.absent_to[o] {
+                0.0
+            } else {
+                let r = ((feature / l - lo) / (hi - lo)).clamp(0.0, 1.0);
+                r * r * (3.0 - 2.0 * r)
+            };
             d[o] = self.amplitude * l * s;
             if s > 0.0 {
                 n = o + 1;
@@ -218,6 +391,7 @@ impl Billows {
         for o in 0..n.min(self.n) {
             if depths[o] > 0.0 {
                 let mut acc = 0.0;
+                super::counters::add(super::counters::Counter::NoiseOctaves, points.len() as u64);
                 for (q, &w) in points.iter().zip(weights) {
                     acc += w * (billow(*q + self.drift[o]) - CREASE);
                 }
@@ -258,6 +432,29 @@ mod tests {
     fn walk(i: usize) -> Vec3A {
         let t = i as f32;
         Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011)
+    }
+
+    #[test]
+    fn simd_noise_has_the_scalar_noises_bits() {
+        // Points of every sign and size, lattice points and their neighbours (the hash's
+        // wrapping products, the floor at negative integers).
+        let mut rng = 0x1234_5678u64;
+        let mut next = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0
+        };
+        for n in 0..200_000 {
+            let scale = [1.0, 10.0, 300.0, 1e5][n % 4];
+            let p = Vec3A::new(next(), next(), next()) * scale;
+            let p = if n % 7 == 0 { p.round() } else { p };
+            assert_eq!(
+                gradient_noise(p).to_bits(),
+                gradient_noise_scalar(p).to_bits(),
+                "at {p}"
+            );
+        }
     }
 
     #[test]
@@ -306,6 +503,49 @@ mod tests {
         // No feature, no billows; none without amplitude.
         assert_eq!(b.total_depth(0.0), 0.0);
         assert_eq!(Billows::new(8, 0.2, 0.01, 0.0, 0.0).octaves(), 0);
+    }
+
+    #[test]
+    fn depths_shortcuts_give_the_divisions_bits() {
+        let b = Billows::new(8, 0.37, 0.001, 0.5, 0.0);
+        let (lo, hi) = FADE_IN;
+        for k in 0..100_000 {
+            let feature = 1e-4 * 1.0002f32.powi(k);
+            let (d, n) = b.depths(feature);
+            let mut last = 0;
+            for o in 0..b.octaves() {
+                let l = b.wavelength[o];
+                let r = ((feature / l - lo) / (hi - lo)).clamp(0.0, 1.0);
+                let s = r * r * (3.0 - 2.0 * r);
+                assert_eq!(
+                    d[o].to_bits(),
+                    (b.amplitude * l * s).to_bits(),
+                    "{feature} {o}"
+                );
+                if s > 0.0 {
+                    last = o + 1;
+                }
+            }
+            assert_eq!(n, last);
+            assert!(d[..n].iter().sum::<f32>() <= b.max_total());
+        }
+        // Near each threshold, densely.
+        for o in 0..b.octaves() {
+            for edge in [b.full_from[o], b.absent_to[o]] {
+                let mut f = edge;
+                for _ in 0..64 {
+                    f = f.next_down();
+                }
+                for _ in 0..128 {
+                    let (d, _) = b.depths(f);
+                    let l = b.wavelength[o];
+                    let r = ((f / l - lo) / (hi - lo)).clamp(0.0, 1.0);
+                    let s = r * r * (3.0 - 2.0 * r);
+                    assert_eq!(d[o].to_bits(), (b.amplitude * l * s).to_bits());
+                    f = f.next_up();
+                }
+            }
+        }
     }
 
     #[test]
