@@ -417,6 +417,8 @@ fn exr_bytes_are_identical_across_encodings() {
         alpha: vec![0.75; 8],
         depth: vec![3.0; 8],
         passes: None,
+        mattes: None,
+        region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]
         .iter()

@@ -468,6 +468,18 @@ fn passes_sum_to_the_beauty_which_keeps_its_bits() {
         [
             "A",
             "B",
+            "CryptoObject00.A",
+            "CryptoObject00.B",
+            "CryptoObject00.G",
+            "CryptoObject00.R",
+            "CryptoObject01.A",
+            "CryptoObject01.B",
+            "CryptoObject01.G",
+            "CryptoObject01.R",
+            "CryptoObject02.A",
+            "CryptoObject02.B",
+            "CryptoObject02.G",
+            "CryptoObject02.R",
             "G",
             "R",
             "Z",
@@ -484,6 +496,20 @@ fn passes_sum_to_the_beauty_which_keeps_its_bits() {
     );
     for c in ["R", "G", "B", "A", "Z"] {
         assert_eq!(a[c], b[c], "{c}: the beauty changed with passes");
+    }
+    // The default animation (diffusion) has the paper's categories as mattes (those with
+    // blobs: this small cumulus has no category II).
+    let (manifest, ranks) = cryptomatte(&with);
+    let names: Vec<&str> = manifest.keys().map(|k| k.as_str()).collect();
+    assert_eq!(names, ["category_I", "category_III"]);
+    let alpha = &b["A"];
+    for (i, r) in ranks.iter().enumerate() {
+        let sum: f32 = r.iter().map(|&(_, c)| c).sum();
+        assert!(
+            (sum - alpha[i]).abs() < 1e-5,
+            "pixel {i}: {r:?} vs A = {}",
+            alpha[i]
+        );
     }
     let (mut worst, mut lit) = (0.0f64, 0);
     for c in ["R", "G", "B"] {
@@ -524,8 +550,11 @@ fn passes_sum_to_the_beauty_which_keeps_its_bits() {
     if let Some(info) = oiiotool_info(&with) {
         assert!(
             info.contains(
-                "channel list: R, G, B, A, Z, multiple.R, multiple.G, multiple.B, sky.R, sky.G, \
-                 sky.B, sun.R, sun.G, sun.B"
+                "channel list: R, G, B, A, Z, CryptoObject00.R, CryptoObject00.G, \
+                 CryptoObject00.B, CryptoObject00.A, CryptoObject01.R, CryptoObject01.G, \
+                 CryptoObject01.B, CryptoObject01.A, CryptoObject02.R, CryptoObject02.G, \
+                 CryptoObject02.B, CryptoObject02.A, multiple.R, multiple.G, multiple.B, sky.R, \
+                 sky.G, sky.B, sun.R, sun.G, sun.B"
             ),
             "{info}"
         );
@@ -550,6 +579,226 @@ fn passes_sum_to_the_beauty_which_keeps_its_bits() {
             o.status.success() && t.contains("PASS"),
             "oiiotool --diff: {t}"
         );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The EXR at `path`: its display window `(origin, size)`, its data window's origin and size,
+/// and its channels by name (over the data window, row-major).
+#[allow(clippy::type_complexity)]
+fn windows_and_channels(
+    path: &Path,
+) -> (
+    ((i32, i32), (usize, usize)),
+    ((i32, i32), (usize, usize)),
+    BTreeMap<String, Vec<f32>>,
+) {
+    let image = exr_support::read_image(path);
+    let d = image.attributes.display_window;
+    let layer = &image.layer_data[0];
+    let p = layer.attributes.layer_position;
+    (
+        ((d.position.0, d.position.1), (d.size.0, d.size.1)),
+        ((p.0, p.1), (layer.size.0, layer.size.1)),
+        channels(path),
+    )
+}
+
+#[test]
+fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
+    let dir = temp_dir("region");
+    // Production: 4 rays a pixel; an open shutter on a moving aggregation: the blurred path.
+    let shot = "width: 48, height: 27, fps: 6, seconds: 1.0, shutter: 0.5";
+    let extra = "animation: Aggregation(()), quality: Production, \
+                 output: (dir: \"out\", formats: [Exr, Png], passes: true)";
+    write_scene(&dir, "c", shot, extra);
+    let region = ["--region", "5,3,37,20"];
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "3", "--output", "full"]));
+    let t = run(nephele(&dir)
+        .args(["render", "c.ron", "--frames", "3"])
+        .args(region));
+    assert!(t.contains("1 frames rendered"), "{t}");
+    let (full, part) = (dir.join("full/c_0003.exr"), dir.join("out/c_0003.exr"));
+    let (display, data, got) = windows_and_channels(&part);
+    assert_eq!(
+        display,
+        ((0, 0), (48, 27)),
+        "display window: the full frame"
+    );
+    assert_eq!(data, ((5, 3), (32, 17)), "data window: the region");
+    let (_, _, all) = windows_and_channels(&full);
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        all.keys().collect::<Vec<_>>()
+    );
+    let mut cloud = 0;
+    for (name, values) in &got {
+        for (k, v) in values.iter().enumerate() {
+            let (x, y) = (5 + k % 32, 3 + k / 32);
+            let w = all[name][y * 48 + x];
+            assert_eq!(v.to_bits(), w.to_bits(), "{name} at ({x}, {y}): {v} vs {w}");
+            cloud += (name == "A" && *v > 0.5) as u32;
+        }
+    }
+    assert!(cloud > 50, "the region shows cloud ({cloud} pixels)");
+    // The PNG: full size, the full frame's pixels inside the region, transparent outside.
+    let png = image::open(dir.join("out/c_0003.png")).unwrap().to_rgba8();
+    let whole = image::open(dir.join("full/c_0003.png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (48, 27));
+    for (x, y, p) in png.enumerate_pixels() {
+        if (5..37).contains(&x) && (3..20).contains(&y) {
+            assert_eq!(p.0[3], 255);
+            assert_eq!(p.0[..3], whole.get_pixel(x, y).0, "({x}, {y})");
+        } else {
+            assert_eq!(p.0[3], 0, "({x}, {y}) is outside the region");
+        }
+    }
+    if let Some(info) = oiiotool_info(&part) {
+        for line in [
+            "32 x   17",
+            "pixel data origin: x=5, y=3",
+            "full/display size: 48 x 27",
+        ] {
+            assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
+        }
+    }
+    // The same region again is up to date; the full frame is not taken for done.
+    let t = run(nephele(&dir)
+        .args(["render", "c.ron", "--frames", "3"])
+        .args(region));
+    assert!(t.contains("0 frames rendered, 1 already done"), "{t}");
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "3"]));
+    assert!(
+        t.contains("1 frames rendered") && t.contains("1 region render"),
+        "{t}"
+    );
+    assert_eq!(
+        channels(&part),
+        all,
+        "the full render replaced the region's frame"
+    );
+    // Bad regions: located errors, exit 1, nothing written.
+    for (bad, says) in [
+        ("5,3,37", "is not x0,y0,x1,y1"),
+        ("5,3,5,20", "is empty"),
+        ("5,3,49,20", "is outside the 48×27 frame"),
+    ] {
+        let e = fails(nephele(&dir).args([
+            "render", "c.ron", "--frames", "3", "--output", "bad", "--region", bad,
+        ]));
+        assert!(
+            e.contains("c.ron: --region: ") && e.contains(says),
+            "{bad}: {e}"
+        );
+    }
+    assert!(!dir.join("bad").exists(), "nothing is written");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Per pixel, the `(id, coverage)` ranks of a Cryptomatte layer.
+type Ranks = Vec<Vec<(f32, f32)>>;
+
+/// The Cryptomatte layer of an EXR decoded: the manifest (name → id), and per pixel the
+/// `(id, coverage)` ranks; checks the header's keys and that every id is the hash of its name.
+fn cryptomatte(path: &Path) -> (BTreeMap<String, f32>, Ranks) {
+    use nephele::render::cryptomatte::{layer_key, name_id};
+    let layer = exr_support::read_first_layer(path);
+    let key = layer_key("CryptoObject");
+    let attr = |what: &str| text_attr(path, &format!("cryptomatte/{key}/{what}"));
+    assert_eq!(attr("name"), "CryptoObject");
+    assert_eq!(attr("hash"), "MurmurHash3_32");
+    assert_eq!(attr("conversion"), "uint32_to_float32");
+    let manifest: BTreeMap<String, String> = serde_json::from_str(&attr("manifest")).unwrap();
+    let manifest: BTreeMap<String, f32> = manifest
+        .into_iter()
+        .map(|(name, hex)| {
+            let id = f32::from_bits(u32::from_str_radix(&hex, 16).unwrap());
+            assert_eq!(hex.len(), 8, "{name}: {hex}");
+            assert_eq!(id.to_bits(), name_id(&name).to_bits(), "{name}: {hex}");
+            (name, id)
+        })
+        .collect();
+    let c = channels(path);
+    let n = layer.size.0 * layer.size.1;
+    let mut ranks = vec![Vec::new(); n];
+    for set in 0..3 {
+        let ch = |s: &str| &c[&format!("CryptoObject{set:02}.{s}")];
+        for (i, r) in ranks.iter_mut().enumerate() {
+            r.push((ch("R")[i], ch("G")[i]));
+            r.push((ch("B")[i], ch("A")[i]));
+        }
+    }
+    assert!(
+        !c.contains_key("CryptoObject03.R"),
+        "6 ranks, 3 channel sets"
+    );
+    (manifest, ranks)
+}
+
+#[test]
+fn cryptomatte_mattes_name_the_clusters_and_cover_the_alpha() {
+    let dir = temp_dir("cryptomatte");
+    let shot = "width: 64, height: 36, fps: 6, seconds: 1.0";
+    write_scene(
+        &dir,
+        "a",
+        shot,
+        "animation: Aggregation(()), output: (dir: \"out\", formats: [Exr], passes: true)",
+    );
+    run(nephele(&dir).args(["render", "a.ron", "--frames", "1,6"]));
+    for frame in [1, 6] {
+        let path = dir.join(format!("out/a_{frame:04}.exr"));
+        let (manifest, ranks) = cryptomatte(&path);
+        assert!(manifest.len() >= 8, "one matte per cluster: {manifest:?}");
+        assert!(
+            manifest.keys().all(|n| n.starts_with("cluster_")),
+            "{manifest:?}"
+        );
+        let alpha = &channels(&path)["A"];
+        let (mut worst, mut seen) = (0.0f32, BTreeMap::new());
+        for (i, r) in ranks.iter().enumerate() {
+            let sum: f32 = r.iter().map(|&(_, c)| c).sum();
+            worst = worst.max((sum - alpha[i]).abs());
+            for w in r.windows(2) {
+                assert!(w[0].1 >= w[1].1, "pixel {i}: ranks by coverage {r:?}");
+            }
+            for &(id, c) in r {
+                if c > 0.0 {
+                    let name = manifest.iter().find(|(_, m)| m.to_bits() == id.to_bits());
+                    let (name, _) = name.unwrap_or_else(|| panic!("id {id} not in the manifest"));
+                    if alpha[i] > 0.5 && c == r[0].1 {
+                        *seen.entry(name.clone()).or_insert(0) += 1;
+                    }
+                } else {
+                    assert_eq!(id, 0.0, "an empty rank's id is 0");
+                }
+            }
+        }
+        assert!(
+            worst < 1e-5,
+            "frame {frame}: coverage sums off alpha by {worst}"
+        );
+        eprintln!(
+            "frame {frame}: pixels per leading cluster {seen:?}; |Σ coverage − A| ≤ {worst:.1e}"
+        );
+        assert!(
+            seen.len() >= 3,
+            "frame {frame}: several clusters show: {seen:?}"
+        );
+        if frame == 6 {
+            if let Some(info) = oiiotool_info(&path) {
+                for line in [
+                    "CryptoObject00.R, CryptoObject00.G, CryptoObject00.B, CryptoObject00.A",
+                    "CryptoObject02.A",
+                    "cryptomatte/3ae39a5/name: \"CryptoObject\"",
+                    "cryptomatte/3ae39a5/hash: \"MurmurHash3_32\"",
+                    "cryptomatte/3ae39a5/conversion: \"uint32_to_float32\"",
+                    "cryptomatte/3ae39a5/manifest: \"{\"cluster_00\":\"",
+                ] {
+                    assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
+                }
+            }
+        }
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -102,6 +102,8 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         alpha: vec![0.0; (base.width * base.height) as usize],
         depth: Vec::new(),
         passes: None,
+        mattes: None,
+        region: None,
     };
     for offset in &centres {
         let mut s = base.clone();

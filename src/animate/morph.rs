@@ -202,6 +202,20 @@ impl MorphPlan {
         self.timeline
     }
 
+    /// Each entry's part in the morph (see [`super::mattes`]): `paired`, `split` (a target
+    /// blob that starts at zero size), `merged` (a surplus source blob), `None` for a target
+    /// blob that is dead.
+    pub fn roles(&self) -> Vec<Option<&'static str>> {
+        (0..self.to.len())
+            .map(|i| match self.target.get(i) {
+                None => Some("merged"),
+                Some(t) if !t.is_live() => None,
+                Some(_) if self.from[i].semi_axes == DVec3::ZERO => Some("split"),
+                Some(_) => Some("paired"),
+            })
+            .collect()
+    }
+
     /// The blobs of frame `k` (target first, then merged source blobs).
     pub fn frame(&self, k: usize) -> Vec<Blob> {
         self.at(self.timeline.time(k))

@@ -36,6 +36,12 @@ pub struct Args {
     /// the beauty), as `output.passes: true` does.
     #[arg(long)]
     pub passes: bool,
+    /// Render only the window X0,Y0,X1,Y1 of each frame (pixels of the frame as rendered, the
+    /// preview's with --preview; X1 and Y1 exclusive): an EXR with the full frame as display
+    /// window and the region as data window, a full-size PNG transparent outside it. A later
+    /// full render re-renders these frames.
+    #[arg(long, value_name = "X0,Y0,X1,Y1")]
+    pub region: Option<String>,
     /// Print the wall time of each stage at the end.
     #[arg(long)]
     pub timings: bool,
@@ -89,6 +95,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         dump_blobs: args.dump_blobs,
         stats: args.stats,
         passes: args.passes,
+        region: args.region.clone(),
     };
     let name = scene.name.clone();
     let mut shot = Shot::open(scene, &opts)?;

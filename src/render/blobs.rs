@@ -104,6 +104,8 @@ impl ActiveHits {
 /// everywhere (what a hold's frames reuse, [`super::ShotRenderer`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlobMedium {
+    /// Each live blob's index in the frame's list (its identity).
+    index: Vec<u32>,
     center: Vec<Vec3A>,
     /// `diag(1/(s√(1+A)))·Rᵀ`: world offset → unit-support coordinates.
     unit_from_world: Vec<Mat3A>,
@@ -168,6 +170,7 @@ impl BlobMedium {
         let largest = length / noise.frequency.max(1e-6);
         let freq = 1.0 / largest;
         let mut m = BlobMedium {
+            index: Vec::new(),
             center: Vec::new(),
             unit_from_world: Vec::new(),
             noise_from_world: Vec::new(),
@@ -236,6 +239,7 @@ impl BlobMedium {
                     Vec3A::ZERO
                 });
             }
+            m.index.push(index as u32);
             m.center.push(center);
             m.unit_from_world
                 .push(Mat3A::from_diagonal(support.recip()) * local_from_world);
@@ -318,6 +322,7 @@ impl BlobMedium {
             if let Some((t0, t1)) = ray_ellipsoid(o, d) {
                 let n = self.noise_from_world[i];
                 hits.push(Hit {
+                    blob: self.index[i],
                     t0,
                     t1,
                     b2: self.b2[i],
@@ -433,6 +438,24 @@ impl Medium for BlobMedium {
         let hits = s.active.at(&s.hits, t);
         count_sample(Counter::MarchSamples, hits);
         self.with_base(density(&self.params, hits, t), x)
+    }
+
+    /// The blob with the largest field term `B²(1 − |q|²)²` among those the sample at `t` is in
+    /// (the one that dominates the density there; ties: the first entered).
+    #[inline]
+    fn label(&self, s: &mut BlobScratch, t: f32) -> u32 {
+        let hits = s.active.at(&s.hits, t);
+        let (mut best, mut label) = (0.0f32, crate::render::cryptomatte::NO_MATTE);
+        for h in hits {
+            let u = (h.o + h.d * t).length_squared();
+            if u < 1.0 {
+                let f = h.b2 * (1.0 - u) * (1.0 - u);
+                if f > best {
+                    (best, label) = (f, h.blob);
+                }
+            }
+        }
+        label
     }
 
     fn bounds(&self) -> Option<(Vec3A, Vec3A)> {

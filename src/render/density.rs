@@ -45,6 +45,8 @@ pub(super) const MAX_ACTIVE: usize = 24;
 /// One blob crossed by the current ray: its span and its frames as affine functions of `t`.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Hit {
+    /// The blob's index in the frame's blob list (its identity, for the ID mattes).
+    pub(super) blob: u32,
     pub(super) t0: f32,
     pub(super) t1: f32,
     pub(super) b2: f32,

@@ -25,8 +25,10 @@ use rand::RngExt;
 use rayon::prelude::*;
 
 use super::Frame;
-use super::camera::{CameraRays, Ray};
+use super::camera::{CameraRays, Frustum, Ray};
 use super::counters::{self, Counter};
+use super::cryptomatte::{Coverage, IdMattes, RANKS, Rank};
+use super::film::{Film, Region};
 use super::lights::{Lights, Unshadowed};
 use super::medium::Medium;
 use super::settings::RenderSettings;
@@ -64,7 +66,7 @@ pub fn render_medium<M: Medium, L: Lights>(
     medium: &M,
     lights: &L,
 ) -> Frame {
-    render_tiles::<M, L, true, false>(settings, medium, lights)
+    render_medium_film(settings, medium, lights, &Film::default())
 }
 
 /// [`render_medium`] with the render passes: the frame's [`super::Passes`] hold the sun's
@@ -76,100 +78,172 @@ pub fn render_medium_passes<M: Medium, L: Lights>(
     medium: &M,
     lights: &L,
 ) -> Frame {
-    render_tiles::<M, L, true, true>(settings, medium, lights)
+    let film = Film {
+        passes: true,
+        ..Film::default()
+    };
+    render_medium_film(settings, medium, lights, &film)
+}
+
+/// [`render_medium`] into `film`: only its window's pixels (the same bits as the full frame's
+/// there), with the passes and ID mattes it asks for; the beauty is the same bits whatever it
+/// asks for.
+pub fn render_medium_film<M: Medium, L: Lights>(
+    settings: &RenderSettings,
+    medium: &M,
+    lights: &L,
+    film: &Film,
+) -> Frame {
+    render_tiles(settings, medium, lights, film, shaded_march(film))
 }
 
 /// Coverage and depth only (RGB stays 0): the same march without lighting, for profiling the
 /// cost of shading and for coverage tests.
 pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
-    render_tiles::<M, Unshadowed, false, false>(settings, medium, &Unshadowed)
+    let trace: MarchFn<M, Unshadowed> = march::<M, Unshadowed, false, false, false>;
+    render_tiles(settings, medium, &Unshadowed, &Film::default(), trace)
 }
 
-fn render_tiles<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
+/// One ray's march ([`march`], monomorphised for what it accumulates).
+pub(super) type MarchFn<M, L> = fn(
+    &M,
+    &L,
+    &Shading,
+    &mut <M as Medium>::Scratch,
+    &Ray,
+    f32,
+    f32,
+    &mut Coverage<'_>,
+) -> PixelResult;
+
+/// The shaded march that accumulates what `film` asks for (passes, mattes); chosen once per
+/// frame, so the per-sample loop has no test for either.
+pub(super) fn shaded_march<M: Medium, L: Lights>(film: &Film) -> MarchFn<M, L> {
+    match (film.passes, film.mattes.is_some()) {
+        (false, false) => march::<M, L, true, false, false>,
+        (true, false) => march::<M, L, true, true, false>,
+        (false, true) => march::<M, L, true, false, true>,
+        (true, true) => march::<M, L, true, true, true>,
+    }
+}
+
+fn render_tiles<M: Medium, L: Lights>(
     settings: &RenderSettings,
     medium: &M,
     lights: &L,
+    film: &Film,
+    trace: MarchFn<M, L>,
 ) -> Frame {
-    let (w, h) = (settings.width, settings.height);
-    let cam = CameraRays::new(&settings.camera, w, h);
+    let w = settings.width;
+    let cam = CameraRays::new(&settings.camera, w, settings.height);
     let shading = Shading::new(settings);
     let seed = settings.seed;
     let samples = settings.quality.samples.max(1);
     let side = (samples as f32).sqrt().ceil() as u32;
     let optical_step = settings.quality.optical_step.max(1e-3);
-    let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    let tiles: Vec<Vec<PixelResult>> = (0..tx * ty)
+    render_film(
+        settings,
+        film,
+        &cam,
+        || medium.scratch(),
+        |scratch, frustum| medium.begin_tile(frustum, scratch),
+        |scratch, (x, y), coverage| {
+            let pixel = y as u64 * w as u64 + x as u64;
+            let mut rng = item_rng(seed, Stream::Render, pixel);
+            let mut ray = |k: u32| {
+                let (ray, jitter) = pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
+                trace(
+                    medium,
+                    lights,
+                    &shading,
+                    scratch,
+                    &ray,
+                    jitter,
+                    optical_step,
+                    coverage,
+                )
+            };
+            if samples == 1 {
+                return (ray(0), 1);
+            }
+            let mut sum = PixelSum::new();
+            for k in 0..samples {
+                sum.add(&ray(k));
+            }
+            (sum.mean(samples), samples)
+        },
+    )
+}
+
+/// One tile's pixels inside the frame's window, in row order.
+struct TilePixels {
+    /// The tile's part of the window.
+    window: Region,
+    pixels: Vec<PixelResult>,
+    /// Each pixel's ID-matte ranks (empty without mattes).
+    ranks: Vec<[Rank; RANKS]>,
+}
+
+/// Render the frame's tiles that meet `film`'s window in parallel and assemble the frame.
+/// Per thread `scratch()` once; per tile `begin_tile(scratch, frustum)` with the whole tile's
+/// frustum (so a region's pixels see what the full frame's do); per pixel of the window
+/// `pixel(scratch, (x, y), coverage)`, which returns the pixel and the number of rays whose
+/// matte weights it added to `coverage`.
+pub(super) fn render_film<S: Send>(
+    settings: &RenderSettings,
+    film: &Film,
+    cam: &CameraRays,
+    scratch: impl Fn() -> S + Sync + Send,
+    begin_tile: impl Fn(&mut S, &Frustum) + Sync + Send,
+    pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>) -> (PixelResult, u32) + Sync + Send,
+) -> Frame {
+    let (w, h) = (settings.width, settings.height);
+    let window = film.window(w, h);
+    let of_blob = film.mattes.as_ref().map_or(&[][..], |m| &m.of_blob[..]);
+    let tx = w.div_ceil(TILE);
+    let tiles: Vec<(Region, Region)> = (0..tx * h.div_ceil(TILE))
+        .filter_map(|tile| {
+            let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
+            let whole = Region {
+                x0,
+                y0,
+                x1: (x0 + TILE).min(w),
+                y1: (y0 + TILE).min(h),
+            };
+            window.intersect(&whole).map(|part| (whole, part))
+        })
+        .collect();
+    let done: Vec<TilePixels> = tiles
         .into_par_iter()
-        .map_init(
-            || medium.scratch(),
-            |scratch, tile| {
-                let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
-                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-                medium.begin_tile(&cam.frustum(x0, y0, x1, y1), scratch);
-                let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let pixel = y as u64 * w as u64 + x as u64;
-                        let mut rng = item_rng(seed, Stream::Render, pixel);
-                        let mut trace = |ray: &Ray, jitter: f32| {
-                            march::<M, L, SHADE, PASSES>(
-                                medium,
-                                lights,
-                                &shading,
-                                scratch,
-                                ray,
-                                jitter,
-                                optical_step,
-                            )
-                        };
-                        if samples == 1 {
-                            let ray = cam.pixel_ray(x, y);
-                            out.push(trace(&ray, rng.random()));
-                            continue;
-                        }
-                        let mut acc = PixelResult {
-                            rgb: Vec3A::ZERO,
-                            transmittance: 0.0,
-                            depth: 0.0,
-                            passes: [Vec3A::ZERO; 3],
-                        };
-                        let mut depth_w = 0.0f32;
-                        for k in 0..samples {
-                            let (cx, cy) = ((k % side) as f32, (k / side % side) as f32);
-                            let (u, v, jitter): (f32, f32, f32) =
-                                (rng.random(), rng.random(), rng.random());
-                            let ray = cam.ray(
-                                x as f32 + (cx + u) / side as f32,
-                                y as f32 + (cy + v) / side as f32,
-                            );
-                            let r = trace(&ray, jitter);
-                            acc.rgb += r.rgb;
-                            acc.transmittance += r.transmittance;
-                            for (a, p) in acc.passes.iter_mut().zip(r.passes) {
-                                *a += p;
-                            }
-                            if r.depth.is_finite() {
-                                let c = 1.0 - r.transmittance;
-                                acc.depth += r.depth * c;
-                                depth_w += c;
-                            }
-                        }
-                        let inv = 1.0 / samples as f32;
-                        acc.rgb *= inv;
-                        acc.transmittance *= inv;
-                        acc.passes = acc.passes.map(|p| p * inv);
-                        acc.depth = if depth_w > 0.0 {
-                            acc.depth / depth_w
-                        } else {
-                            f32::INFINITY
-                        };
-                        out.push(acc);
+        .map_init(scratch, |scratch, (whole, part)| {
+            begin_tile(
+                scratch,
+                &cam.frustum(whole.x0, whole.y0, whole.x1, whole.y1),
+            );
+            let n = (part.width() * part.height()) as usize;
+            let mut out = TilePixels {
+                window: part,
+                pixels: Vec::with_capacity(n),
+                ranks: Vec::with_capacity(if of_blob.is_empty() { 0 } else { n }),
+            };
+            for y in part.y0..part.y1 {
+                for x in part.x0..part.x1 {
+                    let mut coverage = Coverage::new(of_blob);
+                    let (p, rays) = pixel(scratch, (x, y), &mut coverage);
+                    out.pixels.push(p);
+                    if film.mattes.is_some() {
+                        out.ranks.push(coverage.ranks(rays));
                     }
                 }
-                out
-            },
-        )
+            }
+            out
+        })
         .collect();
+    assemble(w, h, film, &done)
+}
+
+/// The frame from its tiles' pixels: full size, empty (no cloud) outside the window.
+fn assemble(w: u32, h: u32, film: &Film, tiles: &[TilePixels]) -> Frame {
     let n = (w * h) as usize;
     let mut frame = Frame {
         width: w,
@@ -177,16 +251,18 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
         rgb: vec![[0.0; 3]; n],
         alpha: vec![0.0; n],
         depth: vec![f32::INFINITY; n],
-        passes: PASSES.then(|| Box::new(super::Passes::zeros(n))),
+        passes: film.passes.then(|| Box::new(super::Passes::zeros(n))),
+        mattes: film
+            .mattes
+            .as_ref()
+            .map(|m| Box::new(IdMattes::empty(m, n))),
+        region: film.region,
     };
-    for (tile, px) in tiles.iter().enumerate() {
-        let tile = tile as u32;
-        let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
-        let x1 = (x0 + TILE).min(w);
-        for (k, p) in px.iter().enumerate() {
-            let k = k as u32;
-            let (x, y) = (x0 + k % (x1 - x0), y0 + k / (x1 - x0));
-            let i = (y * w + x) as usize;
+    for tile in tiles {
+        let r = tile.window;
+        let at = (r.y0..r.y1).flat_map(|y| (r.x0..r.x1).map(move |x| (y * w + x) as usize));
+        for (k, i) in at.enumerate() {
+            let p = &tile.pixels[k];
             frame.rgb[i] = p.rgb.to_array();
             frame.alpha[i] = 1.0 - p.transmittance;
             frame.depth[i] = p.depth;
@@ -194,6 +270,9 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
                 passes.sun[i] = p.passes[0].to_array();
                 passes.sky[i] = p.passes[1].to_array();
                 passes.multiple[i] = p.passes[2].to_array();
+            }
+            if let (Some(m), Some(ranks)) = (&mut frame.mattes, tile.ranks.get(k)) {
+                m.ranks[i] = *ranks;
             }
         }
     }
@@ -208,8 +287,19 @@ fn render_tiles<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
 /// segments of optical thickness at most `optical_step` (so a step never hides a steep change
 /// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
 /// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
+///
+/// With `MATTES`, each sample's share of the pixel's opacity goes to `coverage`, for the matte
+/// of the medium's piece that dominates it ([`Medium::label`]); with `PASSES`, its light by
+/// component to the result's passes. Neither changes the beauty's bits.
 #[inline]
-pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn march<
+    M: Medium,
+    L: Lights,
+    const SHADE: bool,
+    const PASSES: bool,
+    const MATTES: bool,
+>(
     medium: &M,
     lights: &L,
     shading: &Shading,
@@ -217,6 +307,7 @@ pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>
     ray: &Ray,
     jitter: f32,
     optical_step: f32,
+    coverage: &mut Coverage<'_>,
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
     let weights = SHADE.then(|| shading.ray_weights(ray.dir));
@@ -271,6 +362,9 @@ pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>
                 continue;
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());
+            if MATTES {
+                coverage.add(medium.label(scratch, t), absorbed);
+            }
             if let Some(w) = &weights {
                 counters::add(Counter::ShadedSamples, 1);
                 let depths = lights.depths(x);
@@ -312,8 +406,7 @@ pub(super) fn march<M: Medium, L: Lights, const SHADE: bool, const PASSES: bool>
     }
 }
 
-/// The running mean of a pixel's rays (coverage-weighted depth; no passes), for
-/// [`super::motion_blur`].
+/// The running mean of a pixel's rays (coverage-weighted depth).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PixelSum {
     acc: PixelResult,
@@ -336,6 +429,9 @@ impl PixelSum {
     pub(super) fn add(&mut self, r: &PixelResult) {
         self.acc.rgb += r.rgb;
         self.acc.transmittance += r.transmittance;
+        for (a, p) in self.acc.passes.iter_mut().zip(r.passes) {
+            *a += p;
+        }
         if r.depth.is_finite() {
             let c = 1.0 - r.transmittance;
             self.acc.depth += r.depth * c;
@@ -349,6 +445,7 @@ impl PixelSum {
         let inv = 1.0 / n as f32;
         acc.rgb *= inv;
         acc.transmittance *= inv;
+        acc.passes = acc.passes.map(|p| p * inv);
         acc.depth = if self.depth_w > 0.0 {
             acc.depth / self.depth_w
         } else {
@@ -379,32 +476,4 @@ pub(super) fn pixel_sample(
         y as f32 + (cy + v) / side as f32,
     );
     (ray, jitter)
-}
-
-/// The frame (no passes) from its tiles' pixels (each tile's in row order, tiles in row order).
-pub(super) fn assemble(w: u32, h: u32, tiles: &[Vec<PixelResult>]) -> Frame {
-    let tx = w.div_ceil(TILE);
-    let n = (w * h) as usize;
-    let mut frame = Frame {
-        width: w,
-        height: h,
-        rgb: vec![[0.0; 3]; n],
-        alpha: vec![0.0; n],
-        depth: vec![f32::INFINITY; n],
-        passes: None,
-    };
-    for (tile, px) in tiles.iter().enumerate() {
-        let tile = tile as u32;
-        let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
-        let x1 = (x0 + TILE).min(w);
-        for (k, p) in px.iter().enumerate() {
-            let k = k as u32;
-            let (x, y) = (x0 + k % (x1 - x0), y0 + k / (x1 - x0));
-            let i = (y * w + x) as usize;
-            frame.rgb[i] = p.rgb.to_array();
-            frame.alpha[i] = 1.0 - p.transmittance;
-            frame.depth[i] = p.depth;
-        }
-    }
-    frame
 }

@@ -57,6 +57,15 @@ pub trait Medium: Sync {
         (sigma, sigma > 0.0)
     }
 
+    /// Which piece of the medium dominates the extinction at `t`, the last `t` sampled (for the
+    /// ID mattes, [`super::cryptomatte`]): for the blob cloud the index, in the frame's blob
+    /// list, of the blob whose field term is largest there; [`super::cryptomatte::NO_MATTE`]
+    /// where none. Default: one piece, 0.
+    #[inline]
+    fn label(&self, _scratch: &mut Self::Scratch, _t: f32) -> u32 {
+        0
+    }
+
     /// A box `(lo, hi)` outside which the extinction is zero; `None` when the medium is empty
     /// or unbounded.
     fn bounds(&self) -> Option<(Vec3A, Vec3A)>;

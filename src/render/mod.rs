@@ -35,7 +35,9 @@ pub mod blobs;
 pub mod camera;
 pub mod color;
 pub mod counters;
+pub mod cryptomatte;
 pub mod density;
+pub mod film;
 pub mod integrate;
 pub mod lattice;
 pub mod light_grid;
@@ -55,11 +57,17 @@ pub mod sun_grid;
 
 pub use blobs::BlobMedium;
 pub use camera::ray_ellipsoid;
-pub use integrate::{render_medium, render_medium_passes, render_medium_unshaded};
+pub use cryptomatte::{IdMattes, Mattes};
+pub use film::{Film, Region};
+pub use integrate::{
+    render_medium, render_medium_film, render_medium_passes, render_medium_unshaded,
+};
 pub use light_grid::LightGrid;
 pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
 pub use medium::{Homogeneous, Medium, Shape};
-pub use motion_blur::{BlurReport, Shutter, TimeSample, render_frame_blurred};
+pub use motion_blur::{
+    BlurReport, Shutter, TimeSample, render_frame_blurred, render_frame_blurred_film,
+};
 pub use settings::{
     Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
@@ -84,8 +92,13 @@ pub struct Frame {
     /// Transmittance-weighted mean distance from the eye along the pixel's ray (infinity where
     /// the ray hits nothing).
     pub depth: Vec<f32>,
-    /// The render passes, when rendered with them ([`render_frame_with_passes`]).
+    /// The render passes, when rendered with them ([`Film::passes`]).
     pub passes: Option<Box<Passes>>,
+    /// The ID mattes, when rendered with them ([`Film::mattes`]).
+    pub mattes: Option<Box<IdMattes>>,
+    /// The window rendered, when only a region was ([`Film::region`]); the pixels outside it
+    /// are empty (no cloud).
+    pub region: Option<Region>,
 }
 
 /// A frame's light by component, premultiplied like [`Frame::rgb`]; `sun + sky + multiple` is
@@ -121,7 +134,17 @@ pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
 
 /// [`render_frame`] with the render passes ([`Frame::passes`]); the beauty is the same bits.
 pub fn render_frame_with_passes(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
+    let film = Film {
+        passes: true,
+        ..Film::default()
+    };
+    render_frame_film(settings, blobs, &film)
+}
+
+/// [`render_frame`] into `film`: its window only, with the passes and ID mattes it asks for;
+/// every pixel rendered has the full frame's bits.
+pub fn render_frame_film(settings: &RenderSettings, blobs: &[Blob], film: &Film) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
     let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
-    integrate::render_medium_passes(settings, &medium, &lights)
+    render_medium_film(settings, &medium, &lights, film)
 }

@@ -25,12 +25,12 @@
 
 use glam::DVec3;
 use rand::RngExt;
-use rayon::prelude::*;
 
 use super::Frame;
 use super::blobs::BlobMedium;
 use super::camera::{CameraRays, Ray};
-use super::integrate::{PixelSum, TILE, assemble, march, pixel_sample};
+use super::film::Film;
+use super::integrate::{PixelSum, pixel_sample, render_film, shaded_march};
 use super::lattice::GridShape;
 use super::light_grid::LightGrid;
 use super::medium::Medium;
@@ -94,6 +94,17 @@ pub fn render_frame_blurred(
     frame_blobs: &[Blob],
     shutter: &Shutter,
 ) -> (Frame, BlurReport) {
+    render_frame_blurred_film(settings, frame_blobs, shutter, &Film::default())
+}
+
+/// [`render_frame_blurred`] into `film` (its window only, with the passes and ID mattes it asks
+/// for, accumulated over every ray of the shutter).
+pub fn render_frame_blurred_film(
+    settings: &RenderSettings,
+    frame_blobs: &[Blob],
+    shutter: &Shutter,
+    film: &Film,
+) -> (Frame, BlurReport) {
     let frame_medium = BlobMedium::new(settings, frame_blobs);
     let half = (0.5 * shutter.stratum) as f32;
     let slices: Vec<BlobMedium> = shutter
@@ -133,12 +144,12 @@ pub fn render_frame_blurred(
     };
     if slices.is_empty() {
         return (
-            super::render_medium(settings, &frame_medium, &lights[0]),
+            super::render_medium_film(settings, &frame_medium, &lights[0], film),
             report,
         );
     }
     (
-        render_slices(settings, &slices, &lights, shutter.stratum as f32),
+        render_slices(settings, &slices, &lights, shutter.stratum as f32, film),
         report,
     )
 }
@@ -175,6 +186,10 @@ impl<M: Medium> Medium for Bounded<'_, M> {
 
     fn sample(&self, s: &mut Self::Scratch, t: f32, x: glam::Vec3A) -> (f32, bool) {
         self.medium.sample(s, t, x)
+    }
+
+    fn label(&self, s: &mut Self::Scratch, t: f32) -> u32 {
+        self.medium.label(s, t)
     }
 
     fn bounds(&self) -> Option<(glam::Vec3A, glam::Vec3A)> {
@@ -224,81 +239,66 @@ struct Scratch<S> {
 }
 
 /// The tiles of a blurred frame: every pixel's rays spread over the strata of `slices`, lit by
-/// `lights[j]` (or `lights[0]` for all).
+/// `lights[j]` (or `lights[0]` for all), into `film`.
 fn render_slices(
     settings: &RenderSettings,
     slices: &[BlobMedium],
     lights: &[Option<LightGrid>],
     stratum: f32,
+    film: &Film,
 ) -> Frame {
-    let (w, h) = (settings.width, settings.height);
-    let cam = CameraRays::new(&settings.camera, w, h);
+    let w = settings.width;
+    let cam = CameraRays::new(&settings.camera, w, settings.height);
     let shading = Shading::new(settings);
     let samples = settings.quality.samples.max(1);
     let side = (samples as f32).sqrt().ceil() as u32;
     let strata = slices.len() as u32;
     let rays = samples.max(strata);
     let optical_step = settings.quality.optical_step.max(1e-3);
+    let trace = shaded_march::<BlobMedium, Option<LightGrid>>(film);
     // Time samples are seeded per pixel and frame (the frame by its time).
     let frame_seed = key(
         settings.seed,
         Stream::Shutter,
         settings.time.to_bits() as u64,
     );
-    let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
-    let tiles: Vec<_> = (0..tx * ty)
-        .into_par_iter()
-        .map_init(
-            || Scratch {
-                media: slices.iter().map(|m| m.scratch()).collect(),
-                rays: Vec::new(),
-            },
-            |scratch, tile| {
-                let (x0, y0) = ((tile % tx) * TILE, (tile / tx) * TILE);
-                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-                let frustum = cam.frustum(x0, y0, x1, y1);
-                for (m, s) in slices.iter().zip(scratch.media.iter_mut()) {
-                    m.begin_tile(&frustum, s);
-                }
-                let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let pixel = y as u64 * w as u64 + x as u64;
-                        let mut rng = item_rng(settings.seed, Stream::Render, pixel);
-                        let mut time = item_rng(frame_seed, Stream::Shutter, pixel);
-                        scratch.rays.clear();
-                        for k in 0..samples {
-                            let ray = pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
-                            scratch.rays.push(ray);
-                        }
-                        let rotation = time.random_range(0..strata);
-                        let mut sum = PixelSum::new();
-                        for k in 0..rays {
-                            let (ray, jitter) = scratch.rays[(k % samples) as usize];
-                            let j = ((k + rotation) % strata) as usize;
-                            let dt = (time.random::<f32>() - 0.5) * stratum;
-                            let (m, s) = (&slices[j], &mut scratch.media[j]);
-                            m.set_time_offset(s, dt);
-                            let lights = &lights[j.min(lights.len() - 1)];
-                            let r = march::<_, _, true, false>(
-                                m,
-                                lights,
-                                &shading,
-                                s,
-                                &ray,
-                                jitter,
-                                optical_step,
-                            );
-                            sum.add(&r);
-                        }
-                        out.push(sum.mean(rays));
-                    }
-                }
-                out
-            },
-        )
-        .collect();
-    assemble(w, h, &tiles)
+    render_film(
+        settings,
+        film,
+        &cam,
+        || Scratch {
+            media: slices.iter().map(|m| m.scratch()).collect(),
+            rays: Vec::new(),
+        },
+        |scratch, frustum| {
+            for (m, s) in slices.iter().zip(scratch.media.iter_mut()) {
+                m.begin_tile(frustum, s);
+            }
+        },
+        |scratch, (x, y), coverage| {
+            let pixel = y as u64 * w as u64 + x as u64;
+            let mut rng = item_rng(settings.seed, Stream::Render, pixel);
+            let mut time = item_rng(frame_seed, Stream::Shutter, pixel);
+            scratch.rays.clear();
+            for k in 0..samples {
+                let ray = pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
+                scratch.rays.push(ray);
+            }
+            let rotation = time.random_range(0..strata);
+            let mut sum = PixelSum::new();
+            for k in 0..rays {
+                let (ray, jitter) = scratch.rays[(k % samples) as usize];
+                let j = ((k + rotation) % strata) as usize;
+                let dt = (time.random::<f32>() - 0.5) * stratum;
+                let (m, s) = (&slices[j], &mut scratch.media[j]);
+                m.set_time_offset(s, dt);
+                let lights = &lights[j.min(lights.len() - 1)];
+                let r = trace(m, lights, &shading, s, &ray, jitter, optical_step, coverage);
+                sum.add(&r);
+            }
+            (sum.mean(rays), rays)
+        },
+    )
 }
 
 /// Centres of `n` equal strata of a shutter `shutter` frames long, centred on the frame, in

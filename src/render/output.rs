@@ -3,7 +3,8 @@
 //!
 //! EXR: channels `R, G, B` hold the cloud's radiance **premultiplied** by its coverage, `A` the
 //! coverage `1 − T`, `Z` the mean distance along the ray (infinity where empty), all f32,
-//! linear, no exposure. A frame rendered with passes adds the layers `sun.R/G/B`, `sky.R/G/B`
+//! linear, no exposure (f32 also for the ID mattes, whose ids are float bit patterns). A frame
+//! rendered with passes adds the layers `sun.R/G/B`, `sky.R/G/B`
 //! and `multiple.R/G/B` (single-part, scanline: the layout Nuke reads as layers), which sum to
 //! `R, G, B`. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
 //! scene's sky, that is exactly what the PNG shows before exposure and tone mapping.
@@ -18,6 +19,13 @@
 //!
 //! PNG: `(rgb + (1 − A)·sky(dir)) · 2^exposure`, ACES filmic curve (Narkowicz 2015 fit), sRGB
 //! transfer, 8-bit RGB.
+//!
+//! A region render ([`Frame::region`]): the EXR's data window is the region and its display
+//! window the full frame (only the region's pixels are stored); the PNG is full size, RGBA,
+//! transparent outside the region.
+//!
+//! ID mattes ([`Frame::mattes`]): channels `CryptoObject00.R/G/B/A`, … and the
+//! `cryptomatte/<key>/…` header attributes of [`super::cryptomatte`].
 
 use std::io::Cursor;
 use std::path::Path;
@@ -175,24 +183,33 @@ impl CameraFrame {
 /// The EXR file's bytes with the attributes of `meta`, if any.
 pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::Result<Vec<u8>> {
     use exr::prelude::*;
-    let size = (frame.width as usize, frame.height as usize);
+    // The data window: the region rendered, or the whole frame.
+    let window = frame
+        .region
+        .unwrap_or(super::Region::full(frame.width, frame.height));
+    let size = (window.width() as usize, window.height() as usize);
+    let pixels: Vec<usize> = (window.y0..window.y1)
+        .flat_map(|y| (window.x0..window.x1).map(move |x| (y * frame.width + x) as usize))
+        .collect();
     let chan = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
     let space = meta.map_or(ColorSpace::Rec709, |m| m.color_space);
     let to_space = space.from_rec709().as_mat3();
     let convert = |rgb: &[[f32; 3]], c: usize| {
-        rgb.iter()
-            .map(|&p| match space {
-                ColorSpace::Rec709 => p[c],
-                _ => (to_space * Vec3::from(p))[c],
+        pixels
+            .iter()
+            .map(|&i| match space {
+                ColorSpace::Rec709 => rgb[i][c],
+                _ => (to_space * Vec3::from(rgb[i]))[c],
             })
             .collect::<Vec<f32>>()
     };
+    let crop = |v: &[f32]| pixels.iter().map(|&i| v[i]).collect::<Vec<f32>>();
     let mut list = vec![
         chan("R", convert(&frame.rgb, 0)),
         chan("G", convert(&frame.rgb, 1)),
         chan("B", convert(&frame.rgb, 2)),
-        chan("A", frame.alpha.clone()),
-        chan("Z", frame.depth.clone()),
+        chan("A", crop(&frame.alpha)),
+        chan("Z", crop(&frame.depth)),
     ];
     if let Some(p) = &frame.passes {
         for (layer, rgb) in [("sun", &p.sun), ("sky", &p.sky), ("multiple", &p.multiple)] {
@@ -201,8 +218,20 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
             }
         }
     }
+    if let Some(m) = &frame.mattes {
+        for (name, values) in m.channels(&pixels) {
+            list.push(chan(&name, values));
+        }
+    }
     let channels = AnyChannels::sort(SmallVec::from_vec(list));
     let mut attributes = LayerAttributes::named("nephele");
+    attributes.layer_position = Vec2(window.x0 as i32, window.y0 as i32);
+    let text = |s: &str| exr::meta::attribute::AttributeValue::Text(latin1_text(s));
+    if let Some(m) = &frame.mattes {
+        for (key, value) in m.header() {
+            attributes.other.insert(latin1_text(&key), text(&value));
+        }
+    }
     if let Some(meta) = meta {
         attributes.world_to_camera = Some(meta.world_to_camera);
         attributes.world_to_normalized_device = Some(meta.world_to_ndc);
@@ -216,6 +245,8 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     }
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
     let mut image = Image::from_layer(layer);
+    image.attributes.display_window =
+        IntegerBounds::new((0, 0), (frame.width as usize, frame.height as usize));
     if meta.is_some() {
         let c = space.chromaticities();
         let xy = |[x, y]: [f64; 2]| Vec2(x as f32, y as f32);
@@ -292,11 +323,21 @@ fn sort_header_attributes(bytes: &mut [u8]) -> std::io::Result<()> {
 }
 
 /// Write `frame` composited over the sky, exposed and tone-mapped to 8-bit sRGB, atomically.
+///
+/// A region render ([`Frame::region`]) is written full size as RGBA, opaque inside the region
+/// and transparent outside, so it lies over the full frame pixel for pixel.
 pub fn write_png(path: &Path, frame: &Frame, settings: &RenderSettings) -> std::io::Result<()> {
     let img = tonemapped(frame, settings);
     let mut bytes = Cursor::new(Vec::new());
-    img.write_to(&mut bytes, image::ImageFormat::Png)
-        .map_err(|e| std::io::Error::other(format!("PNG encoding failed: {e}")))?;
+    let encoded = match frame.region {
+        None => img.write_to(&mut bytes, image::ImageFormat::Png),
+        Some(r) => image::RgbaImage::from_fn(frame.width, frame.height, |x, y| {
+            let [red, green, blue] = img.get_pixel(x, y).0;
+            image::Rgba([red, green, blue, if r.contains(x, y) { 255 } else { 0 }])
+        })
+        .write_to(&mut bytes, image::ImageFormat::Png),
+    };
+    encoded.map_err(|e| std::io::Error::other(format!("PNG encoding failed: {e}")))?;
     crate::atomic::write_bytes_atomically(path, bytes.get_ref())
 }
 

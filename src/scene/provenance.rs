@@ -27,6 +27,9 @@ use super::Shot;
 use crate::blobby::Blob;
 use crate::render::RenderSettings;
 
+/// How [`output_kind`] names a region render.
+const REGION: &str = "region";
+
 /// What a frame's manifest records.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FrameRecord {
@@ -53,9 +56,10 @@ pub enum FrameStatus {
     OutOfDate(String),
 }
 
-/// The output kind of `shot`'s frames: `final` or `preview`, the region of a look test, the
-/// render passes and the EXR colour space (`final; Rec709`). Part of the hash, and what a
-/// manifest's `output` says.
+/// The output kind of `shot`'s frames: `final` or `preview`, the EXR colour space, the render
+/// passes with their ID mattes, and the region of a look test (`final; Rec709`, `final;
+/// Rec709; passes + CryptoObject; region 0,0,64,32`). Part of the hash, and what a manifest's
+/// `output` says.
 pub fn output_kind(shot: &Shot) -> String {
     let out = &shot.scene().file.output;
     let mut kind = if shot.is_preview() {
@@ -65,7 +69,12 @@ pub fn output_kind(shot: &Shot) -> String {
     };
     kind.push_str(&format!("; {:?}", out.colorspace));
     if shot.passes() {
-        kind.push_str("; passes");
+        // Passes frames of a nephele without the mattes said `; passes`: they are re-rendered.
+        kind.push_str("; passes + ");
+        kind.push_str(crate::render::cryptomatte::OBJECT_LAYER);
+    }
+    if let Some(r) = shot.region() {
+        kind.push_str(&format!("; {REGION} {r}"));
     }
     kind
 }
@@ -170,6 +179,9 @@ pub fn status(shot: &Shot, frame: u32, hash: u64) -> FrameStatus {
     let kind = output_kind(shot);
     FrameStatus::OutOfDate(if record.version != version {
         format!("renderer changed ({} → {version})", record.version)
+    } else if record.output.contains(REGION) && !kind.contains(REGION) {
+        // A look test's frame is never taken for the full frame.
+        "region render".into()
     } else if record.output != kind {
         format!("output changed ({} → {kind})", record.output)
     } else {

@@ -108,15 +108,16 @@ impl Shot {
                     None => report.out_of_date.push((reason, 1)),
                 }
             }
-            // Passes come from their own march (no reuse of the last frame's light grid); an
-            // open shutter with a moving cloud blurs (without passes).
-            let (with_passes, blurred);
+            // A region, passes and mattes come from their own march (no reuse of the last
+            // frame's light grid or frame); an open shutter with a moving cloud blurs.
+            let film = self.film()?;
+            let own;
             let image = if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
-                blurred = crate::render::render_frame_blurred(&settings, &blobs, &shutter).0;
-                &blurred
-            } else if self.passes() {
-                with_passes = crate::render::render_frame_with_passes(&settings, &blobs);
-                &with_passes
+                own = crate::render::render_frame_blurred_film(&settings, &blobs, &shutter, film).0;
+                &own
+            } else if *film != crate::render::Film::default() {
+                own = crate::render::render_frame_film(&settings, &blobs, film);
+                &own
             } else {
                 renderer.render(&settings, &blobs)
             };

@@ -16,8 +16,9 @@ use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
+use crate::render::cryptomatte::{self, Mattes};
 use crate::render::settings::BasePlane;
-use crate::render::{self, Frame, Quality, RenderSettings};
+use crate::render::{self, Film, Frame, Quality, Region, RenderSettings};
 
 /// How to render a shot (the command line's choices).
 #[derive(Clone, Debug, Default)]
@@ -37,6 +38,9 @@ pub struct RenderOptions {
     pub stats: bool,
     /// Write the render passes into the EXR, as `output.passes: true` does.
     pub passes: bool,
+    /// Render only this window of each frame, `x0,y0,x1,y1` in pixels of the frame as
+    /// rendered (`x1`, `y1` exclusive); checked by [`Shot::open`].
+    pub region: Option<String>,
 }
 
 /// The target and its planned animation.
@@ -64,7 +68,9 @@ pub struct Shot {
     total: u32,
     width: u32,
     height: u32,
+    region: Option<Region>,
     prepared: OnceCell<Prepared>,
+    film: OnceCell<Film>,
 }
 
 impl Shot {
@@ -98,6 +104,17 @@ impl Shot {
             height = ((height as f64 * w as f64 / width as f64).round() as u32).max(1);
             width = w;
         }
+        let region =
+            match &options.region {
+                None => None,
+                Some(text) => Some(Region::parse(text, width, height).map_err(|message| {
+                    SceneError::Invalid {
+                        path: scene.path.clone(),
+                        field: "--region".into(),
+                        message,
+                    }
+                })?),
+            };
         Ok(Shot {
             scene,
             options: options.clone(),
@@ -108,7 +125,9 @@ impl Shot {
             total,
             width,
             height,
+            region,
             prepared: OnceCell::new(),
+            film: OnceCell::new(),
         })
     }
 
@@ -166,6 +185,45 @@ impl Shot {
     /// True when the EXR frames get the render passes (`--passes` or `output.passes`).
     pub fn passes(&self) -> bool {
         self.options.passes || self.scene.file.output.passes
+    }
+
+    /// The window each frame renders (`--region`), `None` for the whole frame.
+    pub fn region(&self) -> Option<Region> {
+        self.region
+    }
+
+    /// What the frames are rendered into: the region, and with the passes the ID mattes of
+    /// the animation's pieces ([`crate::animate::mattes`], layer `CryptoObject`).
+    pub fn film(&self) -> Result<&Film, SceneError> {
+        if let Some(f) = self.film.get() {
+            return Ok(f);
+        }
+        let mattes = if self.passes() {
+            let m = self.prepared()?.plan.mattes();
+            Some(Mattes {
+                layer: cryptomatte::OBJECT_LAYER.to_string(),
+                names: m.names,
+                of_blob: m
+                    .of_blob
+                    .into_iter()
+                    .map(|k| {
+                        if k == animate::mattes::NO_MATTE {
+                            cryptomatte::NO_MATTE
+                        } else {
+                            k
+                        }
+                    })
+                    .collect(),
+            })
+        } else {
+            None
+        };
+        let film = Film {
+            region: self.region,
+            passes: self.passes(),
+            mattes,
+        };
+        Ok(self.film.get_or_init(|| film))
     }
 
     /// True for a `--preview` run.
@@ -274,19 +332,11 @@ impl Shot {
         settings: &RenderSettings,
         blobs: &[Blob],
     ) -> Result<Frame, SceneError> {
+        let film = self.film()?;
         Ok(match self.shutter(k, settings.quality.time_samples)? {
-            Some(shutter) => render::render_frame_blurred(settings, blobs, &shutter).0,
-            None => self.render_with(settings, blobs),
+            Some(shutter) => render::render_frame_blurred_film(settings, blobs, &shutter, film).0,
+            None => render::render_frame_film(settings, blobs, film),
         })
-    }
-
-    /// Render `blobs` with `settings`, with the passes if the shot asks for them.
-    pub fn render_with(&self, settings: &RenderSettings, blobs: &[Blob]) -> Frame {
-        if self.passes() {
-            render::render_frame_with_passes(settings, blobs)
-        } else {
-            render::render_frame(settings, blobs)
-        }
     }
 }
 
