@@ -19,6 +19,12 @@
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
 //! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
 //! light scattered straight on along it ([`Shading::forward_sky`]).
+//!
+//! What a frame is rendered into is a [`Film`] ([`super::film`]): one tile driver
+//! (`render_film`, also motion blur's) renders the full frame's tiles that meet its window and
+//! only their pixels inside it (a region's pixels are the full frame's bits), and the march is
+//! monomorphised for what it accumulates besides the beauty — the render passes, the ID mattes'
+//! per-sample opacity by [`Medium::label`] ([`super::cryptomatte`]) — chosen once per frame.
 
 use glam::Vec3A;
 use rand::RngExt;
