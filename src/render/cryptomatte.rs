@@ -9,7 +9,7 @@
 //! Coverage: each march sample's share of the pixel's opacity, `T·(1 − e^{−σh})` (what it adds
 //! to alpha), goes to the matte of the blob whose field term dominates the density there
 //! ([`super::Medium::label`]); a pixel's weights are summed over all its rays in a small fixed
-//! array ([`Coverage`], no allocation) and divided by the number of rays, so a pixel's
+//! array (`Coverage`, no allocation) and divided by the number of rays, so a pixel's
 //! coverages sum to its alpha (1 where the cloud is opaque), as the spec's ranking filter with
 //! non-refractive transparency does. They are ranked by coverage (largest first, ties by
 //! matte) and the first [`RANKS`] kept.

@@ -61,12 +61,13 @@ impl GridShape {
 }
 
 /// Trilinear interpolation at `x` of `C` values per node of `shape` (`inv_h = 1 / shape.h`),
-/// accumulated into `out`.
+/// accumulated into `out`. The values may be stored narrower than `f32` (e.g. quantized `u16`,
+/// which the caller scales).
 #[inline]
-pub fn trilinear<const C: usize>(
+pub fn trilinear<const C: usize, T: Copy + Into<f32>>(
     shape: &GridShape,
     inv_h: f32,
-    v: &[f32],
+    v: &[T],
     x: Vec3A,
     out: &mut [f32; C],
 ) {
@@ -91,7 +92,7 @@ pub fn trilinear<const C: usize>(
     ];
     for (node, wc) in corners {
         for (a, &t) in out.iter_mut().zip(&v[node * C..(node + 1) * C]) {
-            *a += wc * t;
+            *a += wc * t.into();
         }
     }
 }

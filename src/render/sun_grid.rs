@@ -133,6 +133,18 @@ impl SunGrid {
         })
     }
 
+    /// Free the sampled extinction ([`SunGrid::coarse_extinction`] gives 0 after this): it is
+    /// needed only to build the sky's coarse grid.
+    pub fn release_extinction(&mut self) {
+        self.sigma = Vec::new();
+    }
+
+    /// Number of `f32` the grid stores (depth and transmittance per node, and the extinction
+    /// until released).
+    pub fn stored_values(&self) -> usize {
+        self.values.len() + self.sigma.len()
+    }
+
     /// Number of nodes.
     pub fn len(&self) -> usize {
         self.shape.len()
@@ -148,8 +160,11 @@ impl SunGrid {
     /// (0 outside the grid: its border nodes lie outside the cloud).
     #[inline]
     pub fn coarse_extinction(&self, x: Vec3A) -> f32 {
+        if self.sigma.is_empty() {
+            return 0.0;
+        }
         let mut out = [0.0f32; 1];
-        trilinear::<1>(
+        trilinear::<1, f32>(
             &self.shape,
             self.inv_h,
             &self.sigma,
@@ -164,7 +179,7 @@ impl SunGrid {
     #[inline]
     pub fn lookup(&self, x: Vec3A) -> [f32; 2] {
         let mut out = [0.0f32; 2];
-        trilinear::<2>(
+        trilinear::<2, f32>(
             &self.shape,
             self.inv_h,
             &self.values,
@@ -236,14 +251,27 @@ fn blur(v: &mut [f32], dims: [usize; 3]) {
             prev = cur;
         }
     };
-    v.par_chunks_mut(nx * ny).for_each(|slab| {
-        for j in 0..ny {
-            line(&mut slab[j * nx..(j + 1) * nx], nx, 1);
-        }
-        for i in 0..nx {
-            line(&mut slab[i..], ny, nx);
-        }
-    });
+    v.par_chunks_mut(nx * ny).for_each_init(
+        || (vec![0.0f32; nx], vec![0.0f32; nx]),
+        |(prev, cur), slab| {
+            for j in 0..ny {
+                line(&mut slab[j * nx..(j + 1) * nx], nx, 1);
+            }
+            // Along y row by row (the same arithmetic per node as `line`, over contiguous rows
+            // instead of a stride of `nx`), keeping the previous row's values before the blur.
+            prev.fill(0.0);
+            for j in 0..ny {
+                cur.copy_from_slice(&slab[j * nx..(j + 1) * nx]);
+                let (here, rest) = slab[j * nx..].split_at_mut(nx);
+                let next = rest.get(..nx);
+                for (c, out) in here.iter_mut().enumerate() {
+                    let n = next.map_or(0.0, |r| r[c]);
+                    *out = 0.25 * (prev[c] + n) + 0.5 * cur[c];
+                }
+                std::mem::swap(prev, cur);
+            }
+        },
+    );
     // Along z: slab by slab, keeping the previous slab's values before the blur.
     let plane = nx * ny;
     let mut prev = vec![0.0f32; plane];
