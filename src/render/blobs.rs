@@ -57,7 +57,9 @@ pub struct BlobScratch {
 /// bits — are the same as over the whole list. A sample behind the last one starts over.
 #[derive(Debug, Default)]
 struct ActiveHits {
-    list: Vec<Hit>,
+    /// Indices into the ray's list (copying the hits themselves, 144 bytes each, had been a
+    /// fifth of a preview frame).
+    list: Vec<u32>,
     /// Next hit of the ray's list to enter.
     next: usize,
     /// The last sampled `t`.
@@ -75,23 +77,27 @@ impl ActiveHits {
         self.drop_at = f32::INFINITY;
     }
 
-    /// The hits of `hits` (the ray's list, sorted by entry) with `t0 ≤ t ≤ t1`.
+    /// The indices, in `hits` (the ray's list, sorted by entry), of the hits with
+    /// `t0 ≤ t ≤ t1`, in the list's order.
     #[inline]
-    fn at(&mut self, hits: &[Hit], t: f32) -> &[Hit] {
+    fn at(&mut self, hits: &[Hit], t: f32) -> &[u32] {
         if t < self.t {
             self.reset();
         }
         self.t = t;
         if t > self.drop_at {
-            self.list.retain(|h| h.t1 >= t);
-            self.drop_at = self.list.iter().fold(f32::INFINITY, |m, h| m.min(h.t1));
+            self.list.retain(|&i| hits[i as usize].t1 >= t);
+            self.drop_at = self
+                .list
+                .iter()
+                .fold(f32::INFINITY, |m, &i| m.min(hits[i as usize].t1));
         }
         while let Some(h) = hits.get(self.next) {
             if h.t0 > t {
                 break;
             }
             if h.t1 >= t {
-                self.list.push(*h);
+                self.list.push(self.next as u32);
                 self.drop_at = self.drop_at.min(h.t1);
             }
             self.next += 1;
@@ -357,7 +363,7 @@ impl BlobMedium {
     /// `σ_t` at parameter `t` of the ray whose `hits` were gathered (no base).
     #[cfg(test)]
     fn density(&self, hits: &[Hit], t: f32) -> f32 {
-        density(&self.params, hits, t).0
+        density(&self.params, hits, &all_of(hits), t).0
     }
 
     /// The same medium without the billows finer than two cells of a lattice of `res` cells
@@ -373,10 +379,16 @@ impl BlobMedium {
     }
 }
 
+/// The indices of all of `hits` (the whole list as the density's order).
+#[cfg(test)]
+fn all_of(hits: &[Hit]) -> Vec<u32> {
+    (0..hits.len() as u32).collect()
+}
+
 /// Count one density sample and the hits its loop walks over (only with the `counters`
 /// feature; the active window holds no ended hit, so [`Counter::HitsEnded`] stays 0).
 #[inline(always)]
-fn count_sample(kind: Counter, hits: &[Hit]) {
+fn count_sample(kind: Counter, hits: &[u32]) {
     if counters::ENABLED {
         counters::add(kind, 1);
         counters::add(Counter::HitsVisited, hits.len() as u64);
@@ -428,25 +440,26 @@ impl Medium for BlobMedium {
 
     #[inline]
     fn extinction(&self, s: &mut BlobScratch, t: f32, x: Vec3A) -> f32 {
-        let hits = s.active.at(&s.hits, t);
-        count_sample(Counter::LightSamples, hits);
-        self.with_base(density(&self.params, hits, t), x).0
+        let active = s.active.at(&s.hits, t);
+        count_sample(Counter::LightSamples, active);
+        self.with_base(density(&self.params, &s.hits, active, t), x)
+            .0
     }
 
     #[inline]
     fn sample(&self, s: &mut BlobScratch, t: f32, x: Vec3A) -> (f32, bool) {
-        let hits = s.active.at(&s.hits, t);
-        count_sample(Counter::MarchSamples, hits);
-        self.with_base(density(&self.params, hits, t), x)
+        let active = s.active.at(&s.hits, t);
+        count_sample(Counter::MarchSamples, active);
+        self.with_base(density(&self.params, &s.hits, active, t), x)
     }
 
     /// The blob with the largest field term `B²(1 − |q|²)²` among those the sample at `t` is in
     /// (the one that dominates the density there; ties: the first entered).
     #[inline]
     fn label(&self, s: &mut BlobScratch, t: f32) -> u32 {
-        let hits = s.active.at(&s.hits, t);
+        let active = s.active.at(&s.hits, t);
         let (mut best, mut label) = (0.0f32, crate::render::cryptomatte::NO_MATTE);
-        for h in hits {
+        for h in active.iter().map(|&i| &s.hits[i as usize]) {
             let u = (h.o + h.d * t).length_squared();
             if u < 1.0 {
                 let f = h.b2 * (1.0 - u) * (1.0 - u);
@@ -595,7 +608,7 @@ mod tests {
             .chain([0.5, 0.7, 2.0, 1.0, 3.0])
         {
             let window = m.sample(&mut s, t, ray.at(t));
-            let exact = density(&m.params, &full, t);
+            let exact = density(&m.params, &full, &all_of(&full), t);
             assert_eq!(window.0.to_bits(), exact.0.to_bits(), "t = {t}");
             assert_eq!(window.1, exact.1);
             positive += (exact.0 > 0.0) as u32;

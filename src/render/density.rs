@@ -161,17 +161,20 @@ fn ramp(v: f32, w: f32) -> f32 {
     (v / w).clamp(0.0, 1.0)
 }
 
-/// `(σ_t, inside)` at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`);
-/// `inside` is true within the iso-surface (`g > 1`), where erosion may still give 0.
+/// `(σ_t, inside)` at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`),
+/// summed over the hits `order` names (indices into `hits`, increasing: all of them, or those
+/// spanning `t`); `inside` is true within the iso-surface (`g > 1`), where erosion may still
+/// give 0.
 #[inline]
-pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
+pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) -> (f32, bool) {
     let mut g = 0.0;
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
     let mut fmax = 0.0f32;
     let mut grad = Vec3A::ZERO;
     let mut reach = 0.0f32;
-    for (k, h) in hits.iter().enumerate() {
+    for &k in order {
+        let h = &hits[k as usize];
         if h.t0 > t {
             break;
         }
@@ -195,7 +198,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
                 reach = r;
             }
             if n < MAX_ACTIVE {
-                act[n] = (f, k as u32);
+                act[n] = (f, k);
                 n += 1;
             } else {
                 // Full: keep the strongest, so the dominant blob is always among them
@@ -204,7 +207,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], t: f32) -> (f32, bool) {
                     .min_by(|&i, &j| act[i].0.total_cmp(&act[j].0))
                     .unwrap_or(0);
                 if f > act[weakest].0 {
-                    act[weakest] = (f, k as u32);
+                    act[weakest] = (f, k);
                 }
             }
         }
