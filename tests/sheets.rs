@@ -4,7 +4,7 @@
 //! `../shared/models`) are skipped with a message. Re-run after changing the look or the
 //! animation:
 //!
-//! `cargo test --release --test sheets -- --ignored --nocapture`
+//! `cargo test --release --test sheets -- --ignored --nocapture` (`NEPHELE_SHEETS=a,b`: only those scenes)
 
 mod builtin_scenes;
 
@@ -42,7 +42,15 @@ fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::R
 #[ignore = "writes the picture sheets into renders/: see the module doc"]
 fn sheets() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // NEPHELE_SHEETS=a,b re-makes only those scenes' sheets (and not the golden-hour picture).
+    let only = std::env::var("NEPHELE_SHEETS").ok();
     for name in builtin_scenes::NAMES {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|s| s == name))
+        {
+            continue;
+        }
         let pick = |n: u32| vec![(n / 5).max(1), (n * 11 / 20).max(1), n];
         let Some(images) = frames(&builtin_scenes::path(name), &pick) else {
             continue;
@@ -55,6 +63,9 @@ fn sheets() {
         let path = repo.join(format!("renders/sheet-{name}.png"));
         sheet.save(&path).unwrap();
         println!("{}", path.display());
+    }
+    if only.is_some() {
+        return;
     }
     let golden = frames(&repo.join("scenes/duck-golden-hour.ron"), &|n| vec![n]).unwrap();
     let path = repo.join("renders/duck-golden-hour.png");
