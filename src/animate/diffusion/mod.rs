@@ -56,6 +56,8 @@
 //! every frame, at most a third of the final volume added per second, and no frame with less
 //! visible volume than the frame before (1 % lattice).
 
+use std::sync::OnceLock;
+
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -170,11 +172,12 @@ pub struct DiffusionPlan {
     blend_start: f64,
     blend_seconds: f64,
     /// The blend's path through (III's progress, I/II's progress to the fitted `B`) in eased
-    /// time, so the volume never decreases and rises evenly (empty: both the eased time).
-    path: BlendPath,
-    /// Largest drop of the visible volume (cells of the plan's 2 % lattice) along the path's
-    /// nodes (0: none).
-    path_drop: f64,
+    /// time, so the volume never decreases and rises evenly (empty: both the eased time), and
+    /// the largest drop of the visible volume along its nodes. Made on first need (a frame
+    /// inside the blend): a process rendering frames outside it does not pay for the grid.
+    path: OnceLock<(BlendPath, f64)>,
+    /// The iso-level, for the path's volumes.
+    threshold: f64,
     /// Category III arrives together (its growth follows the blend progress).
     together: bool,
     /// Volume of categories I and II as shown, over the final volume (2 % lattice; NaN when
@@ -206,12 +209,18 @@ impl DiffusionPlan {
             gamma -= 0.05;
             plan = DiffusionPlan::with_strength(cfg, target, threshold, timeline, gamma);
         }
-        if plan.together {
-            let (path, drop) = BlendPath::least_dropping(&plan.blend_volumes(threshold));
-            plan.path = path;
-            plan.path_drop = drop;
-        }
         plan
+    }
+
+    /// The blend's path and its largest volume drop (see the field), made on first call.
+    fn blend_path(&self) -> &(BlendPath, f64) {
+        self.path.get_or_init(|| {
+            if self.together {
+                BlendPath::least_dropping(&self.blend_volumes(self.threshold))
+            } else {
+                (BlendPath::default(), f64::NAN)
+            }
+        })
     }
 
     /// Visible volume (cells of a 2 % lattice) on the `GRID_STEPS` grid of (III's progress,
@@ -238,7 +247,7 @@ impl DiffusionPlan {
     /// Largest drop of the visible volume along the blend path's nodes, in cells of the
     /// plan's 2 % lattice (0: it never decreases there; NaN unless III arrives `Together`).
     pub fn blend_drop(&self) -> f64 {
-        self.path_drop
+        self.blend_path().1
     }
 
     /// [`DiffusionPlan::new`] with the early blobs' strength `γ` (`B = γ·(1+A)/A`; 0: the
@@ -334,8 +343,8 @@ impl DiffusionPlan {
             grow,
             blend_start,
             blend_seconds: g3,
-            path: BlendPath::default(),
-            path_drop: f64::NAN,
+            path: OnceLock::new(),
+            threshold,
             early_share,
             together: cfg.category_iii == DetailArrival::Together,
             timeline,
@@ -381,7 +390,15 @@ impl DiffusionPlan {
         } else {
             0.0
         };
-        let (detail, fitted) = self.path.at(lerp(u, smoothstep(u), 0.5));
+        // Before and after the blend the path's ends are known: no grid needed.
+        let eased = lerp(u, smoothstep(u), 0.5);
+        let (detail, fitted) = if eased <= 0.0 {
+            (0.0, 0.0)
+        } else if eased >= 1.0 {
+            (1.0, 1.0)
+        } else {
+            self.blend_path().0.at(eased)
+        };
         self.frame_with(t, detail, fitted)
     }
 
