@@ -305,23 +305,10 @@ fn cloud_scene(test: &str, extra: &str) -> (PathBuf, PathBuf) {
 
 /// [`cloud_scene`] with the given `animation` at `fps` frames per second.
 fn cloud_scene_with(test: &str, animation: &str, fps: u32, extra: &str) -> (PathBuf, PathBuf) {
-    use nephele::blobby::model_file::MODEL_VERSION;
-    use nephele::blobby::{BlobModel, SourceInfo, save_model};
+    use nephele::blobby::{BlobModel, save_model};
     let dir = temp_dir(test);
     let blobs = cloud();
-    let model = BlobModel {
-        version: MODEL_VERSION,
-        primitive: nephele::decompose::Primitive::Ellipsoid,
-        threshold: 1.0,
-        source: SourceInfo {
-            mesh: "test:cloud".into(),
-            bounds: nephele::animate::blob_bounds(&blobs),
-            vertices: 0,
-            faces: 0,
-        },
-        seed: 1,
-        blobs,
-    };
+    let model = BlobModel::from_blobs("test:cloud", 1.0, 1, blobs);
     save_model(&dir.join("model.ron"), &model).unwrap();
     let path = dir.join("shot.ron");
     std::fs::write(

@@ -4,38 +4,11 @@
 //! Slurm run is tests/slurm.sh.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+mod cli_support;
+
+use cli_support::{nephele_in as bin, run, succeeded as ok};
 use nephele::scene::chunk::ARRAY_INDEX_VARS;
-
-/// nephele with no job-array index variable inherited from the environment.
-fn bin(dir: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_nephele"));
-    c.current_dir(dir);
-    for v in ARRAY_INDEX_VARS {
-        c.env_remove(v);
-    }
-    c
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn ok(o: Output) -> String {
-    let t = text(&o);
-    assert!(o.status.success(), "{t}");
-    t
-}
-
-/// Run `c`, assert it succeeded and return its stdout and stderr.
-fn run(c: &mut Command) -> String {
-    ok(c.output().unwrap())
-}
 
 /// A folder with `shot.ron`: a tiny 10-frame shot of a coarse sphere fit.
 fn shot_dir(test: &str) -> PathBuf {

@@ -5,11 +5,14 @@
 //! `oiiotool --info -v` (Debian `openimageio-tools`; the check says it skipped when absent).
 //! Every scene is the procedural `builtin:cumulus` at a few dozen pixels.
 
+mod cli_support;
 mod exr_support;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
+
+use cli_support::{nephele_in as nephele, run, text};
 
 use exr::meta::attribute::{AttributeValue, Text};
 
@@ -18,32 +21,6 @@ fn temp_dir(test: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// nephele run in `dir`.
-fn nephele(dir: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_nephele"));
-    c.current_dir(dir);
-    for v in nephele::scene::chunk::ARRAY_INDEX_VARS {
-        c.env_remove(v);
-    }
-    c
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// Run `c`, assert it succeeded, return its output text.
-fn run(c: &mut Command) -> String {
-    let o = c.output().unwrap();
-    let t = text(&o);
-    assert!(o.status.success(), "{t}");
-    t
 }
 
 /// Run `c`, assert it failed with exit code 1, return its output text.

@@ -208,26 +208,13 @@ fn blur_changes_the_frame_where_the_cloud_moves_and_not_where_it_holds() {
 /// error before anything renders.
 #[test]
 fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
-    use nephele::blobby::model_file::MODEL_VERSION;
-    use nephele::blobby::{BlobModel, SourceInfo, save_model};
+    use nephele::blobby::{BlobModel, save_model};
     use nephele::scene::{self, RenderOptions, SceneError, Shot};
     let dir = std::env::temp_dir().join(format!("nephele-blur-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let blobs = cloud(DVec3::ZERO);
-    let model = BlobModel {
-        version: MODEL_VERSION,
-        primitive: nephele::decompose::Primitive::Ellipsoid,
-        threshold: 1.0,
-        source: SourceInfo {
-            mesh: "test:cloud".into(),
-            bounds: nephele::animate::blob_bounds(&blobs),
-            vertices: 0,
-            faces: 0,
-        },
-        seed: 1,
-        blobs,
-    };
+    let model = BlobModel::from_blobs("test:cloud", 1.0, 1, blobs);
     save_model(&dir.join("model.ron"), &model).unwrap();
     let write = |name: &str, shutter: &str| {
         let path = dir.join(name);

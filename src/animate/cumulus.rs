@@ -8,9 +8,7 @@
 use glam::{DQuat, DVec3};
 use rand::RngExt;
 
-use crate::blobby::model_file::MODEL_VERSION;
-use crate::blobby::{Blob, BlobModel, SourceInfo, THRESHOLD};
-use crate::decompose::Primitive;
+use crate::blobby::{Blob, BlobModel, THRESHOLD};
 use crate::rng::{Stream, item_rng};
 
 /// The name after `builtin:`.
@@ -57,20 +55,7 @@ pub fn cumulus() -> BlobModel {
             .element_product()
             .total_cmp(&a.semi_axes.element_product())
     });
-    let bounds = super::blob_bounds(&blobs);
-    BlobModel {
-        version: MODEL_VERSION,
-        primitive: Primitive::Ellipsoid,
-        threshold: THRESHOLD,
-        source: SourceInfo {
-            mesh: format!("builtin:{NAME}"),
-            bounds,
-            vertices: 0,
-            faces: 0,
-        },
-        seed: 0,
-        blobs,
-    }
+    BlobModel::from_blobs(&format!("builtin:{NAME}"), THRESHOLD, 0, blobs)
 }
 
 /// The builtin blob model called `name` (after `builtin:`), if there is one.

@@ -282,10 +282,7 @@ impl Plan {
 /// Axis-aligned bounds of the blobs' ellipsoids (`ρ = 1`), live blobs only. This is "the
 /// target's bounding box" of the animation and of the scene's camera framing and length unit.
 pub fn blob_bounds(blobs: &[Blob]) -> Aabb {
-    blobs
-        .iter()
-        .filter(|b| b.is_live())
-        .fold(Aabb::EMPTY, |acc, b| acc.union(b.ellipsoid().bounds()))
+    crate::blobby::ellipsoid_bounds(blobs)
 }
 
 /// Linear interpolation of `a` to `b` at `t ∈ [0, 1]`.

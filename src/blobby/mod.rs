@@ -130,7 +130,34 @@ pub struct BlobModel {
     pub blobs: Vec<Blob>,
 }
 
+/// Bounding box of the live blobs' ellipsoids (`ρ = 1`): the box of the shape they stand for.
+pub fn ellipsoid_bounds(blobs: &[Blob]) -> Aabb {
+    blobs
+        .iter()
+        .filter(|b| b.is_live())
+        .fold(Aabb::EMPTY, |acc, b| acc.union(b.ellipsoid().bounds()))
+}
+
 impl BlobModel {
+    /// A model made in code rather than fitted (a builtin shape, a test cloud): ellipsoid
+    /// `blobs` at iso-level `threshold`, its source named `mesh` with the blobs' ellipsoid box
+    /// ([`ellipsoid_bounds`]) and no vertex or face counts.
+    pub fn from_blobs(mesh: &str, threshold: f64, seed: u64, blobs: Vec<Blob>) -> BlobModel {
+        BlobModel {
+            version: model_file::MODEL_VERSION,
+            primitive: Primitive::Ellipsoid,
+            threshold,
+            source: SourceInfo {
+                mesh: mesh.into(),
+                bounds: ellipsoid_bounds(&blobs),
+                vertices: 0,
+                faces: 0,
+            },
+            seed,
+            blobs,
+        }
+    }
+
     /// The summed field of all blobs, with a spatial index.
     pub fn field(&self) -> BlobField {
         BlobField::new(&self.blobs, self.threshold)

@@ -506,6 +506,30 @@ mod tests {
     use super::super::density::MAX_ACTIVE;
     use super::*;
 
+    /// An 8×8 `Final` frame looking down +Z from z = −5, with length unit `length_scale`.
+    fn tiny_settings(length_scale: f32) -> RenderSettings {
+        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
+        RenderSettings {
+            width: 8,
+            height: 8,
+            camera: Camera {
+                position: glam::Vec3::new(0.0, 0.0, -5.0),
+                look_at: glam::Vec3::ZERO,
+                up: glam::Vec3::Y,
+                fov_deg: 40.0,
+            },
+            sun: Sun::default(),
+            sky: Sky::default(),
+            cloud: CloudMaterial::default(),
+            exposure: 0.0,
+            length_scale,
+            seed: 1,
+            time: 0.0,
+            quality: Quality::final_frame(),
+            base: None,
+        }
+    }
+
     #[test]
     fn density_is_finite_under_more_overlapping_blobs_than_the_active_list_holds() {
         use glam::{DQuat, DVec3};
@@ -522,26 +546,7 @@ mod tests {
             .map(|i| sphere(0.01 * i as f64, 1.0, 0.05))
             .collect();
         blobs.push(sphere(0.0, 0.3, 4.0));
-        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
-        let settings = RenderSettings {
-            width: 8,
-            height: 8,
-            camera: Camera {
-                position: glam::Vec3::new(0.0, 0.0, -5.0),
-                look_at: glam::Vec3::ZERO,
-                up: glam::Vec3::Y,
-                fov_deg: 40.0,
-            },
-            sun: Sun::default(),
-            sky: Sky::default(),
-            cloud: CloudMaterial::default(),
-            exposure: 0.0,
-            length_scale: 2.0,
-            seed: 1,
-            time: 0.0,
-            quality: Quality::final_frame(),
-            base: None,
-        };
+        let settings = tiny_settings(2.0);
         let m = BlobMedium::new(&settings, &blobs);
         let ray = Ray {
             origin: Vec3A::new(0.0, 0.0, -5.0),
@@ -560,7 +565,6 @@ mod tests {
 
     #[test]
     fn active_window_gives_the_full_lists_bits() {
-        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
         use glam::{DQuat, DVec3};
         // Overlapping blobs along the ray, some ending early: samples at increasing t (and
         // steps back, as the march's re-march takes) through the window equal the full list's.
@@ -573,25 +577,7 @@ mod tests {
                 b: 2.0,
             })
             .collect();
-        let settings = RenderSettings {
-            width: 8,
-            height: 8,
-            camera: Camera {
-                position: glam::Vec3::new(0.0, 0.0, -5.0),
-                look_at: glam::Vec3::ZERO,
-                up: glam::Vec3::Y,
-                fov_deg: 40.0,
-            },
-            sun: Sun::default(),
-            sky: Sky::default(),
-            cloud: CloudMaterial::default(),
-            exposure: 0.0,
-            length_scale: 4.0,
-            seed: 1,
-            time: 0.0,
-            quality: Quality::final_frame(),
-            base: None,
-        };
+        let settings = tiny_settings(4.0);
         let m = BlobMedium::new(&settings, &blobs);
         let ray = Ray {
             origin: Vec3A::new(0.0, 0.0, -1.0),
