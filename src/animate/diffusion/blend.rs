@@ -38,17 +38,16 @@ pub(super) struct BlendPath {
 
 impl BlendPath {
     /// The least-dropping monotone path through `grid` (`grid[i][j]` = volume at detail
-    /// `i / n`, fitted `j / n`, a square of side `n + 1`), paced by its volumes. Also returns
-    /// the largest step down along it (0: never decreases at the nodes).
-    pub fn least_dropping(grid: &[Vec<f64>]) -> (BlendPath, f64) {
-        let (cells, drop) = least_dropping_path(grid);
+    /// `i / n`, fitted `j / n`, a square of side `n + 1`), paced by its volumes.
+    pub fn least_dropping(grid: &[Vec<f64>]) -> BlendPath {
+        let (cells, _) = least_dropping_path(grid);
         let n = (grid.len().max(2) - 1) as f64;
         let nodes: Vec<(f64, f64)> = cells
             .iter()
             .map(|&(i, j)| (i as f64 / n, j as f64 / n))
             .collect();
         let volumes: Vec<f64> = cells.iter().map(|&(i, j)| grid[i][j]).collect();
-        (BlendPath::paced(&nodes, &volumes), drop)
+        BlendPath::paced(&nodes, &volumes)
     }
 
     /// Knots through `nodes` (progress pairs) whose times share the volume added
@@ -223,7 +222,7 @@ mod tests {
 
     #[test]
     fn the_path_is_paced_by_volume_and_runs_corner_to_corner() {
-        let (path, _) = BlendPath::least_dropping(&duck_grid());
+        let path = BlendPath::least_dropping(&duck_grid());
         assert_eq!(path.at(0.0), (0.0, 0.0));
         assert_eq!(path.at(1.0), (1.0, 1.0));
         let mut last = (0.0, 0.0);

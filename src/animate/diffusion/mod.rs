@@ -172,10 +172,10 @@ pub struct DiffusionPlan {
     blend_start: f64,
     blend_seconds: f64,
     /// The blend's path through (III's progress, I/II's progress to the fitted `B`) in eased
-    /// time, so the volume never decreases and rises evenly (empty: both the eased time), and
-    /// the largest drop of the visible volume along its nodes. Made on first need (a frame
-    /// inside the blend): a process rendering frames outside it does not pay for the grid.
-    path: OnceLock<(BlendPath, f64)>,
+    /// time, so the volume never decreases and rises evenly (empty: both the eased time). Made
+    /// on first need (a frame inside the blend): a process rendering frames outside it does not
+    /// pay for the grid.
+    path: OnceLock<BlendPath>,
     /// The iso-level, for the path's volumes.
     threshold: f64,
     /// Category III arrives together (its growth follows the blend progress).
@@ -212,13 +212,13 @@ impl DiffusionPlan {
         plan
     }
 
-    /// The blend's path and its largest volume drop (see the field), made on first call.
-    fn blend_path(&self) -> &(BlendPath, f64) {
+    /// The blend's path (see the field), made on first call.
+    fn blend_path(&self) -> &BlendPath {
         self.path.get_or_init(|| {
             if self.together {
                 BlendPath::least_dropping(&self.blend_volumes(self.threshold))
             } else {
-                (BlendPath::default(), f64::NAN)
+                BlendPath::default()
             }
         })
     }
@@ -242,12 +242,6 @@ impl DiffusionPlan {
                     .collect()
             })
             .collect()
-    }
-
-    /// Largest drop of the visible volume along the blend path's nodes, in cells of the
-    /// plan's 2 % lattice (0: it never decreases there; NaN unless III arrives `Together`).
-    pub fn blend_drop(&self) -> f64 {
-        self.blend_path().1
     }
 
     /// [`DiffusionPlan::new`] with the early blobs' strength `γ` (`B = γ·(1+A)/A`; 0: the
@@ -397,7 +391,7 @@ impl DiffusionPlan {
         } else if eased >= 1.0 {
             (1.0, 1.0)
         } else {
-            self.blend_path().0.at(eased)
+            self.blend_path().at(eased)
         };
         self.frame_with(t, detail, fitted)
     }
