@@ -572,23 +572,16 @@ fn validate_cloud(
         ));
     }
     if let Some(b) = c.base {
-        if !(b.height.is_finite() && (0.0..=1.0).contains(&b.height)) {
-            return Err(bad(
-                "cloud.base.height",
-                format!(
-                    "must be in 0..=1 (a fraction of the target's height), got {}",
-                    b.height
-                ),
-            ));
-        }
-        if !(b.softness.is_finite() && (0.0..=1.0).contains(&b.softness)) {
-            return Err(bad(
-                "cloud.base.softness",
-                format!(
-                    "must be in 0..=1 (a fraction of the target's height), got {}",
-                    b.softness
-                ),
-            ));
+        for (field, v) in [
+            ("cloud.base.height", b.height),
+            ("cloud.base.softness", b.softness),
+        ] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(bad(
+                    field,
+                    format!("must be in 0..=1 (a fraction of the target's height), got {v}"),
+                ));
+            }
         }
     }
     if c.noise.octaves > 8 {
