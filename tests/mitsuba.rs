@@ -150,7 +150,7 @@ fn write_inputs(
         let f = render_medium(
             &s,
             &m,
-            &LightGrid::for_frame(&s, &m.for_lattice(s.quality.shadow_grid)),
+            &LightGrid::for_frame(&s, &m.for_light_grid(&s)),
         );
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {

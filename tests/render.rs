@@ -407,7 +407,7 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     use nephele::render::counters;
     let m = BlobMedium::new(s, blobs);
     // The light grid samples the medium without the billows it cannot hold, as a frame's does.
-    let lattice = m.for_lattice(s.quality.shadow_grid);
+    let lattice = m.for_light_grid(s);
     counters::take();
     let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &lattice));
     let light = counters::take();
@@ -417,7 +417,8 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     let sun_dir = Vec3A::from(s.sun.travel_dir());
     let h = size.map_or(1.0, |_| {
         let (lo, hi) = m.bounds().unwrap();
-        (hi - lo).max_element() / s.quality.shadow_grid as f32
+        let extent = (hi - lo).max_element();
+        extent / s.light_grid_cells(extent) as f32
     });
     let sun_s = median(
         (0..3)
@@ -490,7 +491,7 @@ fn bench_frame_times() {
                 .collect(),
         );
         let m = BlobMedium::new(&s, &blobs);
-        let lattice = m.for_lattice(s.quality.shadow_grid);
+        let lattice = m.for_light_grid(&s);
         let light = median(
             (0..runs)
                 .map(|_| time(|| LightGrid::for_frame(&s, &lattice)).1)

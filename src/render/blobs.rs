@@ -366,6 +366,13 @@ impl BlobMedium {
         density(&self.params, hits, &all_of(hits), t).0
     }
 
+    /// The medium a frame's light grid samples: [`BlobMedium::for_lattice`] at the grid's
+    /// resolution for `settings` ([`RenderSettings::light_grid_cells`]).
+    pub fn for_light_grid(&self, settings: &RenderSettings) -> BlobMedium {
+        let extent = self.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element());
+        self.for_lattice(settings.light_grid_cells(extent))
+    }
+
     /// The same medium without the billows finer than two cells of a lattice of `res` cells
     /// on the longest side of its bounds: for the light grid, where they would only alias (the
     /// shadows they cast are below the grid's resolution anyway), at a fraction of the cost.

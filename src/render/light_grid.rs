@@ -92,8 +92,8 @@ pub struct LightGridSize {
 
 impl LightGrid {
     /// The light grid of a frame: `medium` lit by `settings.sun` at
-    /// `settings.quality.shadow_grid` cells on the longest side. `None` when the medium is
-    /// empty.
+    /// [`RenderSettings::light_grid_cells`] on the longest side of its bounds (the quality's
+    /// `shadow_grid`, fewer for a cloud small on screen). `None` when the medium is empty.
     pub fn for_frame<M: Medium>(settings: &RenderSettings, medium: &M) -> Option<LightGrid> {
         LightGrid::for_frame_reusing(settings, medium, None)
     }
@@ -105,7 +105,9 @@ impl LightGrid {
         previous: Option<LightGrid>,
     ) -> Option<LightGrid> {
         let sun = Vec3A::from(settings.sun.travel_dir());
-        LightGrid::build_reusing(medium, sun, settings.quality.shadow_grid, previous)
+        let extent = medium.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element());
+        let res = settings.light_grid_cells(extent);
+        LightGrid::build_reusing(medium, sun, res, previous)
     }
 
     /// Light grid for sunlight travelling along `sun_dir` (unit) through `medium`, about `res`

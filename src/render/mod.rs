@@ -128,7 +128,7 @@ impl Passes {
 /// jitter does not change between frames, so identical blobs give identical frames.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
+    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
     render_medium(settings, &medium, &lights)
 }
 
@@ -145,6 +145,6 @@ pub fn render_frame_with_passes(settings: &RenderSettings, blobs: &[Blob]) -> Fr
 /// every pixel rendered has the full frame's bits.
 pub fn render_frame_film(settings: &RenderSettings, blobs: &[Blob], film: &Film) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_lattice(settings.quality.shadow_grid));
+    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
     render_medium_film(settings, &medium, &lights, film)
 }

@@ -118,9 +118,13 @@ pub fn render_frame_blurred_film(
             m
         })
         .collect();
-    let shift = shift_cells(settings, &frame_medium, frame_blobs, shutter);
-    let extent = settings.quality.shadow_grid.max(2) as f32;
-    let lights: Vec<Option<LightGrid>> = if shift > MAX_LIGHT_SHIFT * extent {
+    let cells = frame_medium
+        .bounds()
+        .map_or(settings.quality.shadow_grid, |(lo, hi)| {
+            settings.light_grid_cells((hi - lo).max_element())
+        });
+    let shift = shift_cells(cells, &frame_medium, frame_blobs, shutter);
+    let lights: Vec<Option<LightGrid>> = if shift > MAX_LIGHT_SHIFT * cells.max(2) as f32 {
         // One lattice over the frame and every stratum, so a part that holds still is sampled
         // at the same nodes in each.
         let bounds = std::iter::once(&frame_medium)
@@ -205,10 +209,10 @@ impl<M: Medium> Medium for Bounded<'_, M> {
     }
 }
 
-/// Largest travel of a live blob's centre from the frame within the shutter, in light-grid
-/// cells (0 for an empty frame).
+/// Largest travel of a live blob's centre from the frame within the shutter, in cells of a
+/// light grid of `cells` on its longest side (0 for an empty frame).
 fn shift_cells(
-    settings: &RenderSettings,
+    cells: u32,
     frame_medium: &BlobMedium,
     frame_blobs: &[Blob],
     shutter: &Shutter,
@@ -216,7 +220,7 @@ fn shift_cells(
     let Some((lo, hi)) = frame_medium.bounds() else {
         return 0.0;
     };
-    let cell = GridShape::covering(lo, hi, settings.quality.shadow_grid).h as f64;
+    let cell = GridShape::covering(lo, hi, cells).h as f64;
     let half = 0.5 * shutter.stratum;
     let mut travel = 0.0f64;
     for s in &shutter.samples {

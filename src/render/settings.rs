@@ -218,6 +218,10 @@ pub enum QualityPreset {
     Production,
 }
 
+/// Fewest cells [`RenderSettings::light_grid_cells`] gives a light grid (a cloud a few pixels
+/// wide still gets a shadowed side).
+pub const MIN_LIGHT_GRID_CELLS: u32 = 24;
+
 /// Speed/quality trade-offs of the ray marcher.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quality {
@@ -227,6 +231,10 @@ pub struct Quality {
     /// Resolution of the light-transmittance grid along its longest side (toward the sun; the
     /// sky's depths use half of it).
     pub shadow_grid: u32,
+    /// Smallest light-grid cell, in pixels of the frame at the camera's look-at distance: a
+    /// cloud small on screen (a diffusion's first second) gets fewer than `shadow_grid` cells,
+    /// since shadow detail finer than a pixel cannot show ([`RenderSettings::light_grid_cells`]).
+    pub shadow_cell_pixels: f32,
     /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
     /// only; at most 6).
     pub ms_octaves: u32,
@@ -252,6 +260,7 @@ impl Quality {
             QualityPreset::Production => Quality {
                 step_scale: 0.2,
                 shadow_grid: 256,
+                shadow_cell_pixels: 0.5,
                 ms_octaves: 4,
                 optical_step: 0.02,
                 samples: 4,
@@ -265,6 +274,7 @@ impl Quality {
         Quality {
             step_scale: 0.25,
             shadow_grid: 224,
+            shadow_cell_pixels: 1.0,
             ms_octaves: 3,
             optical_step: 0.08,
             samples: 1,
@@ -277,6 +287,7 @@ impl Quality {
         Quality {
             step_scale: 0.6,
             shadow_grid: 48,
+            shadow_cell_pixels: 1.0,
             ms_octaves: 2,
             optical_step: 0.2,
             samples: 1,
@@ -315,6 +326,24 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
+    /// Cells on the longest side of a light grid over a cloud `extent` wide (world units):
+    /// `quality.shadow_grid`, or fewer where its cells would be finer than
+    /// `quality.shadow_cell_pixels` of a pixel ([`RenderSettings::pixel_footprint`]), and at
+    /// least [`MIN_LIGHT_GRID_CELLS`].
+    pub fn light_grid_cells(&self, extent: f32) -> u32 {
+        let cell = self.quality.shadow_cell_pixels * self.pixel_footprint();
+        let res = self.quality.shadow_grid;
+        if !(cell > 0.0 && extent > 0.0) {
+            return res;
+        }
+        let fit = (extent / cell).ceil();
+        if fit >= res as f32 {
+            res
+        } else {
+            (fit as u32).clamp(MIN_LIGHT_GRID_CELLS.min(res), res)
+        }
+    }
+
     /// World size of one pixel at the camera's look-at distance (the scale of the finest detail
     /// the frame resolves).
     pub fn pixel_footprint(&self) -> f32 {

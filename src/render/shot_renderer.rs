@@ -69,7 +69,8 @@ impl ShotRenderer {
             Some(l)
                 if same_cloud
                     && l.settings.sun == settings.sun
-                    && l.settings.quality.shadow_grid == settings.quality.shadow_grid =>
+                    && light_grid_cells(&l.settings, &medium)
+                        == light_grid_cells(settings, &medium) =>
             {
                 (l.grid, Reuse::LightGrid)
             }
@@ -95,5 +96,11 @@ impl ShotRenderer {
 
 /// The medium the light grid samples, as [`super::render_frame`] builds it.
 fn lattice_medium(settings: &RenderSettings, medium: &BlobMedium) -> BlobMedium {
-    medium.for_lattice(settings.quality.shadow_grid)
+    medium.for_light_grid(settings)
+}
+
+/// The light grid's cells for `medium` with `settings` (a grid is reused only at the same).
+fn light_grid_cells(settings: &RenderSettings, medium: &BlobMedium) -> u32 {
+    let extent = medium.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element());
+    settings.light_grid_cells(extent)
 }
