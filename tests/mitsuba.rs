@@ -147,11 +147,7 @@ fn write_inputs(
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
         let m = BlobMedium::new(&s, &blobs);
-        let f = render_medium(
-            &s,
-            &m,
-            &LightGrid::for_frame(&s, &m.for_light_grid(&s)),
-        );
+        let f = render_medium(&s, &m, &LightGrid::for_frame(&s, &m.for_light_grid(&s)));
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"

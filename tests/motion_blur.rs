@@ -43,13 +43,14 @@ fn settings(time_samples: u32) -> RenderSettings {
         length_scale: 1.5,
         seed: 11,
         time: 1.0,
-        // A coarser light grid than Final's 224 cells keeps the 48 sub-frame renders quick;
-        // no pixel floor on its cells (0), so every render of this 96×54 frame has 64 whatever
+        // A coarser light grid than Final's 224 cells keeps the 48 sub-frame renders quick (96:
+        // the sky's grid a third of it, 32 cells);
+        // no pixel floor on its cells (0), so every render of this 96×54 frame has 96 whatever
         // its cloud's bounds (the floor would give the strata and the sub-frames different,
         // far coarser lattices: this test is about the light's motion, not its resolution).
         quality: Quality {
             time_samples,
-            shadow_grid: 64,
+            shadow_grid: 96,
             shadow_cell_pixels: 0.0,
             ..Quality::final_frame()
         },

@@ -369,8 +369,7 @@ impl BlobMedium {
     /// The medium a frame's light grid samples: [`BlobMedium::for_lattice`] at the grid's
     /// resolution for `settings` ([`RenderSettings::light_grid_cells`]).
     pub fn for_light_grid(&self, settings: &RenderSettings) -> BlobMedium {
-        let extent = self.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element());
-        self.for_lattice(settings.light_grid_cells(extent))
+        self.for_lattice(settings.light_grid_cells(self.bounds()))
     }
 
     /// The same medium without the billows finer than two cells of a lattice of `res` cells

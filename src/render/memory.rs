@@ -14,9 +14,9 @@ pub const BYTES_PER_PIXEL: u64 = 70;
 
 /// Bytes per node of the light grid: the sun's light-aligned grid over the supports' light-space
 /// box (depth and transmittance, and the extinction while the sky is built, on up to 1.7× as
-/// many nodes: 21), an eighth of a coarse sky node (26 `u16` depths, extinction and up to 7
-/// `u16` sweep buffers: 70 / 8), rounded up.
-pub const BYTES_PER_GRID_NODE: u64 = 32;
+/// many nodes: 21), a 27th of a coarse sky node (26 `u16` depths, extinction and up to 7
+/// `u16` sweep buffers: 70 / 27), rounded up.
+pub const BYTES_PER_GRID_NODE: u64 = 24;
 
 /// Estimated peak bytes to render and write one `width × height` frame at `quality`.
 pub fn frame_bytes(width: u32, height: u32, quality: &Quality) -> u64 {
@@ -77,7 +77,7 @@ mod tests {
     #[test]
     fn huge_frames_are_refused_with_their_size() {
         let e = check(100_000, 100_000, QualityPreset::Final).unwrap_err();
-        assert!(e.contains("700.4 GB"), "{e}");
+        assert!(e.contains("700.3 GB"), "{e}");
         assert!(check(640, 360, QualityPreset::Final).is_ok());
         assert_eq!(format_bytes(2_500_000_000), "2.5 GB");
     }

@@ -118,11 +118,7 @@ pub fn render_frame_blurred_film(
             m
         })
         .collect();
-    let cells = frame_medium
-        .bounds()
-        .map_or(settings.quality.shadow_grid, |(lo, hi)| {
-            settings.light_grid_cells((hi - lo).max_element())
-        });
+    let cells = settings.light_grid_cells(frame_medium.bounds());
     let shift = shift_cells(cells, &frame_medium, frame_blobs, shutter);
     let lights: Vec<Option<LightGrid>> = if shift > MAX_LIGHT_SHIFT * cells.max(2) as f32 {
         // One lattice over the frame and every stratum, so a part that holds still is sampled

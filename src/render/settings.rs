@@ -229,7 +229,7 @@ pub struct Quality {
     /// median blob's support radius (clamped by the renderer to `[L/2000, L/16]`).
     pub step_scale: f32,
     /// Resolution of the light-transmittance grid along its longest side (toward the sun; the
-    /// sky's depths use half of it).
+    /// sky's depths use a third of it).
     pub shadow_grid: u32,
     /// Smallest light-grid cell, in pixels of the frame at the camera's look-at distance: a
     /// cloud small on screen (a diffusion's first second) gets fewer than `shadow_grid` cells,
@@ -326,11 +326,12 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
-    /// Cells on the longest side of a light grid over a cloud `extent` wide (world units):
-    /// `quality.shadow_grid`, or fewer where its cells would be finer than
-    /// `quality.shadow_cell_pixels` of a pixel ([`RenderSettings::pixel_footprint`]), and at
-    /// least [`MIN_LIGHT_GRID_CELLS`].
-    pub fn light_grid_cells(&self, extent: f32) -> u32 {
+    /// Cells on the longest side of a light grid over a cloud of `bounds` (world box, as
+    /// [`super::Medium::bounds`] gives): `quality.shadow_grid`, or fewer where its cells would
+    /// be finer than `quality.shadow_cell_pixels` of a pixel ([`RenderSettings::pixel_footprint`]),
+    /// and at least [`MIN_LIGHT_GRID_CELLS`].
+    pub fn light_grid_cells(&self, bounds: Option<(glam::Vec3A, glam::Vec3A)>) -> u32 {
+        let extent = bounds.map_or(0.0, |(lo, hi)| (hi - lo).max_element());
         let cell = self.quality.shadow_cell_pixels * self.pixel_footprint();
         let res = self.quality.shadow_grid;
         if !(cell > 0.0 && extent > 0.0) {

@@ -69,8 +69,8 @@ impl ShotRenderer {
             Some(l)
                 if same_cloud
                     && l.settings.sun == settings.sun
-                    && light_grid_cells(&l.settings, &medium)
-                        == light_grid_cells(settings, &medium) =>
+                    && l.settings.light_grid_cells(medium.bounds())
+                        == settings.light_grid_cells(medium.bounds()) =>
             {
                 (l.grid, Reuse::LightGrid)
             }
@@ -97,10 +97,4 @@ impl ShotRenderer {
 /// The medium the light grid samples, as [`super::render_frame`] builds it.
 fn lattice_medium(settings: &RenderSettings, medium: &BlobMedium) -> BlobMedium {
     medium.for_light_grid(settings)
-}
-
-/// The light grid's cells for `medium` with `settings` (a grid is reused only at the same).
-fn light_grid_cells(settings: &RenderSettings, medium: &BlobMedium) -> u32 {
-    let extent = medium.bounds().map_or(0.0, |(lo, hi)| (hi - lo).max_element());
-    settings.light_grid_cells(extent)
 }

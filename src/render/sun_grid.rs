@@ -155,9 +155,9 @@ impl SunGrid {
         self.shape.is_empty()
     }
 
-    /// The sampled extinction at world point `x` as a grid of twice the spacing sees it: the
-    /// samples blurred by `[¼ ½ ¼]` per axis, then trilinear — a filter about two cells wide
-    /// (0 outside the grid: its border nodes lie outside the cloud).
+    /// The sampled extinction at world point `x` as the sky's coarser grid sees it: the samples
+    /// blurred by `[¼ ½ ¼]` per axis, then trilinear — a filter about two cells wide (0
+    /// outside the grid: its border nodes lie outside the cloud).
     #[inline]
     pub fn coarse_extinction(&self, x: Vec3A) -> f32 {
         if self.sigma.is_empty() {
