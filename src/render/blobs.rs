@@ -537,6 +537,25 @@ mod tests {
     }
 
     #[test]
+    fn light_grid_cells_are_no_finer_than_a_pixel() {
+        use crate::render::MIN_LIGHT_GRID_CELLS;
+        let mut s = tiny_settings(1.0);
+        s.height = 360;
+        let px = s.pixel_footprint();
+        let box_of = |pixels: f32| Some((Vec3A::ZERO, Vec3A::new(pixels * px, 1e-3, 1e-3)));
+        // A cloud 100 px across gets 100 cells, one 1,000 px across the quality's 224, one 5 px
+        // across the floor; no pixel floor (0) or no bounds: the quality's.
+        assert_eq!(s.light_grid_cells(box_of(100.0)), 100);
+        assert_eq!(s.light_grid_cells(box_of(1000.0)), 224);
+        assert_eq!(s.light_grid_cells(box_of(5.0)), MIN_LIGHT_GRID_CELLS);
+        assert_eq!(s.light_grid_cells(None), 224);
+        s.quality.shadow_cell_pixels = 0.5;
+        assert_eq!(s.light_grid_cells(box_of(100.0)), 200);
+        s.quality.shadow_cell_pixels = 0.0;
+        assert_eq!(s.light_grid_cells(box_of(5.0)), 224);
+    }
+
+    #[test]
     fn density_is_finite_under_more_overlapping_blobs_than_the_active_list_holds() {
         use glam::{DQuat, DVec3};
         // 30 weak, wide blobs whose supports the ray enters first, then one strong blob: the

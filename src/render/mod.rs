@@ -69,7 +69,8 @@ pub use motion_blur::{
     BlurReport, Shutter, TimeSample, render_frame_blurred, render_frame_blurred_film,
 };
 pub use settings::{
-    Camera, CloudMaterial, Noise, Quality, QualityPreset, RenderSettings, Sky, Sun,
+    Camera, CloudMaterial, MIN_LIGHT_GRID_CELLS, Noise, Quality, QualityPreset, RenderSettings,
+    Sky, Sun,
 };
 pub use shading::{InScattered, Shading};
 pub use shot_renderer::{Reuse, ShotRenderer};
