@@ -122,8 +122,8 @@ impl LightGrid {
     /// zero a few hundred megabytes every frame.
     ///
     /// The sun's depths are summed along light columns straight from the medium ([`SunGrid`]);
-    /// the sky's are swept through a world grid of [`SKY_SPACING`] times the spacing whose extinction is the
-    /// sun grid's samples, prefiltered: the medium is sampled once per frame.
+    /// the sky's are swept through a world grid of [`SKY_SPACING`] times the spacing whose
+    /// extinction is the sun grid's samples, prefiltered: the medium is sampled once per frame.
     pub fn build_reusing<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,

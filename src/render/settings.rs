@@ -337,12 +337,8 @@ impl RenderSettings {
         if !(cell > 0.0 && extent > 0.0) {
             return res;
         }
-        let fit = (extent / cell).ceil();
-        if fit >= res as f32 {
-            res
-        } else {
-            (fit as u32).clamp(MIN_LIGHT_GRID_CELLS.min(res), res)
-        }
+        // `as` saturates: a cloud far wider than the frame's pixels gets `res`.
+        (((extent / cell).ceil()) as u32).clamp(MIN_LIGHT_GRID_CELLS.min(res), res)
     }
 
     /// World size of one pixel at the camera's look-at distance (the scale of the finest detail

@@ -75,11 +75,11 @@ impl ShotRenderer {
                 (l.grid, Reuse::LightGrid)
             }
             Some(l) => (
-                LightGrid::for_frame_reusing(settings, &lattice_medium(settings, &medium), l.grid),
+                LightGrid::for_frame_reusing(settings, &medium.for_light_grid(settings), l.grid),
                 Reuse::Buffers,
             ),
             None => (
-                LightGrid::for_frame(settings, &lattice_medium(settings, &medium)),
+                LightGrid::for_frame(settings, &medium.for_light_grid(settings)),
                 Reuse::Buffers,
             ),
         };
@@ -92,9 +92,4 @@ impl ShotRenderer {
         });
         (&last.frame, reuse)
     }
-}
-
-/// The medium the light grid samples, as [`super::render_frame`] builds it.
-fn lattice_medium(settings: &RenderSettings, medium: &BlobMedium) -> BlobMedium {
-    medium.for_light_grid(settings)
 }
