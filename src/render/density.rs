@@ -15,8 +15,9 @@
 //! ```
 //!
 //! `D_F` is the billow displacement for feature size `F` ([`super::noise::Billows`]): octaves
-//! from a fifth of the target down to the frame's finest, each `amplitude × wavelength` deep and
-//! present only where `F` exceeds its wavelength, so a young blob, a leg and the body each get
+//! from a fifth of the target down to the frame's finest, each about `amplitude × wavelength`
+//! deep (finer ones a little deeper: [`super::noise::HURST`]) and present only where `F`
+//! exceeds its wavelength, so a young blob, a leg and the body each get
 //! billows of their own size, and a thin part is never cut deeper than a fraction of its
 //! radius (it keeps its width).
 //!
@@ -282,12 +283,8 @@ mod tests {
         };
         let f = 1.0; // every octave at full depth
         let total = p.billows.total_depth(f);
-        assert!(
-            (total
-                - 0.25 * 0.2 * (1.0 + 1.0 / 2.03 + 1.0 / 2.03f32.powi(2) + 1.0 / 2.03f32.powi(3)))
-            .abs()
-                < 1e-5
-        );
+        let octave = |k: i32| 0.25 * 0.2 * 2.03f32.powf(-(k as f32) * super::super::noise::HURST);
+        assert!((total - (0..4).map(octave).sum::<f32>()).abs() < 1e-5);
         let never = |_: &[f32; 8],
                      _: usize,
                      _: &dyn Fn(f32, f32) -> Option<f32>|
@@ -304,19 +301,19 @@ mod tests {
         );
         // Between: the surface is pushed out by a billow top and cut in by a crease.
         assert_eq!(
-            p.extinction(-0.02, f, 1e9, |_, _, _| Ok(0.03)),
+            p.extinction(-0.015, f, 1e9, |_, _, _| Ok(0.03)),
             (10.0, true)
         );
         assert_eq!(p.extinction(0.02, f, 1.0, |_, _, _| Ok(-0.03)), (0.0, true));
         let (s, inside) = p.extinction(-0.02, f, 1e9, |_, _, _| Ok(0.025));
         assert!(inside && (s - 5.0).abs() < 1e-3, "{s}");
-        // Near the end of the supports a billow top is rounded off: a push of 0.03 where the
-        // supports reach 0.03 further lifts the surface by 0.015 only.
+        // Near the end of the supports a billow top is rounded off: a push of 0.02 where the
+        // supports reach 0.02 further lifts the surface by 0.01 only.
         assert_eq!(
-            p.extinction(-0.02, f, 0.03, |_, _, _| Ok(0.03)),
+            p.extinction(-0.015, f, 0.02, |_, _, _| Ok(0.02)),
             (0.0, true)
         );
-        let (s, _) = p.extinction(-0.01, f, 0.03, |_, _, _| Ok(0.03));
+        let (s, _) = p.extinction(-0.005, f, 0.02, |_, _, _| Ok(0.02));
         assert!((s - 5.0).abs() < 1e-3, "{s}");
         // And no density can lie beyond the reach.
         assert_eq!(p.extinction(-0.031, f, 0.03, never), (0.0, false));
