@@ -348,7 +348,9 @@ pub(super) fn march<
     coverage: &mut Coverage<'_>,
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
-    let weights = SHADE.then(|| shading.ray_weights(ray.dir));
+    // The phase weights depend on the direction only: formed at the first shaded sample, so a
+    // ray that misses the cloud (most of a wide frame's sky) never pays for its 26 sky cells.
+    let mut weights = None;
     let coarse = medium.step().max(1e-9);
     // Fine steps keep the light each one absorbs, `T·(1 − e^{−σh})`, near `optical_step`: thin
     // where the ray enters the cloud (what the eye sees most, and where the sunlit skin's light
@@ -403,7 +405,8 @@ pub(super) fn march<
             if MATTES {
                 coverage.add(medium.label(scratch, t), absorbed);
             }
-            if let Some(w) = &weights {
+            if SHADE {
+                let w = weights.get_or_insert_with(|| shading.ray_weights(ray.dir));
                 counters::add(Counter::ShadedSamples, 1);
                 let depths = lights.depths(x);
                 let light = shading.in_scattered(w, &depths);

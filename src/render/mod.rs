@@ -46,6 +46,7 @@ pub mod medium;
 pub mod memory;
 pub mod motion_blur;
 pub mod noise;
+mod noise_simd;
 pub mod output;
 pub mod phase;
 pub mod settings;

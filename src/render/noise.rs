@@ -10,12 +10,12 @@
 use glam::Vec3A;
 
 /// Multipliers of the lattice hash, one per axis.
-const HASH_AXES: [u32; 3] = [0x8DA6_B343, 0xD816_3841, 0xCB1A_B31F];
+pub(super) const HASH_AXES: [u32; 3] = [0x8DA6_B343, 0xD816_3841, 0xCB1A_B31F];
 
 /// The lattice hash's mixing rounds (a few multiply-xorshifts, well mixed in the low bits) of
 /// `h = i·A ^ j·B ^ k·C`.
 #[inline]
-fn mix(mut h: u32) -> u32 {
+pub(super) fn mix(mut h: u32) -> u32 {
     h ^= h >> 15;
     h = h.wrapping_mul(0x2C1B_3C6D);
     h ^= h >> 12;
@@ -33,7 +33,7 @@ fn hash3(i: i32, j: i32, k: i32) -> u32 {
 /// Dot product of the offset `(x, y, z)` with one of Perlin's 12 edge gradients (16 entries,
 /// four repeated), chosen by the hash.
 #[inline]
-fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
+pub(super) fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
     let h = h & 15;
     let u = if h < 8 { x } else { y };
     let v = if h < 4 {
@@ -48,30 +48,23 @@ fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
 
 /// Quintic fade `6t⁵ − 15t⁴ + 10t³` (C² continuous lattice blending).
 #[inline]
-fn fade(t: f32) -> f32 {
+pub(super) fn fade(t: f32) -> f32 {
     t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 }
 
 #[inline]
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
+pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + t * (b - a)
 }
 
 /// Improved Perlin gradient noise at `p`: zero on the integer lattice, about `[−1, 1]`.
 ///
-/// On x86-64 the eight corners are hashed and dotted four at a time with SSE2 (every x86-64
-/// has it), the same operations in the same order as the portable [`gradient_noise_scalar`],
-/// so the bits are the same on every machine.
+/// On x86-64 the eight corners are hashed and dotted several at a time (AVX2 where the CPU has
+/// it, else SSE2, [`super::noise_simd`]), the same operations in the same order as the portable
+/// [`gradient_noise_scalar`], so the bits are the same on every machine.
 #[inline]
 pub fn gradient_noise(p: Vec3A) -> f32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        sse2::gradient_noise(p)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        gradient_noise_scalar(p)
-    }
+    super::noise_simd::gradient_noise(p)
 }
 
 /// [`gradient_noise`] one corner at a time (the reference the SIMD version must equal).
@@ -95,108 +88,6 @@ pub fn gradient_noise_scalar(p: Vec3A) -> f32 {
     let x01 = lerp(c(0, 0, 1), c(1, 0, 1), u);
     let x11 = lerp(c(0, 1, 1), c(1, 1, 1), u);
     lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
-}
-
-/// The noise's corners four at a time: lanes `(dj, dk) = (0,0), (1,0), (0,1), (1,1)`, one
-/// vector for `di = 0` and one for `di = 1`. The hash's per-axis products are formed once per
-/// axis (`(i+1)·A = i·A + A` in wrapping arithmetic) and the 32-bit products of the mixing
-/// rounds from SSE2's 32×32→64 multiply.
-#[cfg(target_arch = "x86_64")]
-mod sse2 {
-    use core::arch::x86_64::*;
-
-    use glam::Vec3A;
-
-    use super::{HASH_AXES, fade, lerp};
-
-    /// Low 32 bits of the lane-wise product `a·b` (SSE4.1's `pmulld` from SSE2).
-    #[inline(always)]
-    unsafe fn mullo(a: __m128i, b: __m128i) -> __m128i {
-        unsafe {
-            let even = _mm_mul_epu32(a, b);
-            let odd = _mm_mul_epu32(_mm_srli_epi64::<32>(a), _mm_srli_epi64::<32>(b));
-            _mm_unpacklo_epi32(
-                _mm_shuffle_epi32::<0b00_00_10_00>(even),
-                _mm_shuffle_epi32::<0b00_00_10_00>(odd),
-            )
-        }
-    }
-
-    /// [`super::mix`] lane-wise.
-    #[inline(always)]
-    unsafe fn mix(h: __m128i) -> __m128i {
-        unsafe {
-            let h = _mm_xor_si128(h, _mm_srli_epi32::<15>(h));
-            let h = mullo(h, _mm_set1_epi32(0x2C1B_3C6D));
-            let h = _mm_xor_si128(h, _mm_srli_epi32::<12>(h));
-            let h = mullo(h, _mm_set1_epi32(0x297A_2D39));
-            _mm_xor_si128(h, _mm_srli_epi32::<15>(h))
-        }
-    }
-
-    /// `a` where `mask` is set, else `b`.
-    #[inline(always)]
-    unsafe fn select(mask: __m128, a: __m128, b: __m128) -> __m128 {
-        unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
-    }
-
-    /// [`super::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
-    #[inline(always)]
-    unsafe fn grad(h: __m128i, x: __m128, y: __m128, z: __m128) -> __m128 {
-        unsafe {
-            let h = _mm_and_si128(h, _mm_set1_epi32(15));
-            let below8 = _mm_castsi128_ps(_mm_cmplt_epi32(h, _mm_set1_epi32(8)));
-            let below4 = _mm_castsi128_ps(_mm_cmplt_epi32(h, _mm_set1_epi32(4)));
-            let x_as_v = _mm_castsi128_ps(_mm_or_si128(
-                _mm_cmpeq_epi32(h, _mm_set1_epi32(12)),
-                _mm_cmpeq_epi32(h, _mm_set1_epi32(14)),
-            ));
-            let u = select(below8, x, y);
-            let v = select(below4, y, select(x_as_v, x, z));
-            let su = _mm_slli_epi32::<31>(_mm_and_si128(h, _mm_set1_epi32(1)));
-            let sv = _mm_slli_epi32::<30>(_mm_and_si128(h, _mm_set1_epi32(2)));
-            _mm_add_ps(
-                _mm_xor_ps(u, _mm_castsi128_ps(su)),
-                _mm_xor_ps(v, _mm_castsi128_ps(sv)),
-            )
-        }
-    }
-
-    #[inline]
-    pub(super) fn gradient_noise(p: Vec3A) -> f32 {
-        let f = p.floor();
-        let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
-        let r = p - f;
-        let (x, y, z) = (r.x, r.y, r.z);
-        let (u, v, w) = (fade(x), fade(y), fade(z));
-        let [a, b, c] = HASH_AXES;
-        let hi = (i as u32).wrapping_mul(a);
-        let hj = (j as u32).wrapping_mul(b);
-        let hk = (k as u32).wrapping_mul(c);
-        let (hj1, hk1) = (hj.wrapping_add(b), hk.wrapping_add(c));
-        // SAFETY: SSE2 is part of x86-64.
-        let lanes = unsafe {
-            // `_mm_set_*` lists lanes from the last to the first.
-            let jk = _mm_set_epi32(
-                (hj1 ^ hk1) as i32,
-                (hj ^ hk1) as i32,
-                (hj1 ^ hk) as i32,
-                (hj ^ hk) as i32,
-            );
-            let h0 = mix(_mm_xor_si128(jk, _mm_set1_epi32(hi as i32)));
-            let h1 = mix(_mm_xor_si128(jk, _mm_set1_epi32(hi.wrapping_add(a) as i32)));
-            let ys = _mm_set_ps(y - 1.0, y, y - 1.0, y);
-            let zs = _mm_set_ps(z - 1.0, z - 1.0, z, z);
-            let c0 = grad(h0, _mm_set1_ps(x), ys, zs);
-            let c1 = grad(h1, _mm_set1_ps(x - 1.0), ys, zs);
-            let mixed = _mm_add_ps(c0, _mm_mul_ps(_mm_set1_ps(u), _mm_sub_ps(c1, c0)));
-            let mut out = [0.0f32; 4];
-            _mm_storeu_ps(out.as_mut_ptr(), mixed);
-            out
-        };
-        let [x00, x10, x01, x11] = lanes;
-        lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
-    }
 }
 
 /// Wavelength ratio between billow octaves: slightly off 2 so octave lattices do not line up.
@@ -450,29 +341,6 @@ mod tests {
     fn walk(i: usize) -> Vec3A {
         let t = i as f32;
         Vec3A::new(t * 0.137, (t * 0.071).sin() * 40.0, t * 0.011)
-    }
-
-    #[test]
-    fn simd_noise_has_the_scalar_noises_bits() {
-        // Points of every sign and size, lattice points and their neighbours (the hash's
-        // wrapping products, the floor at negative integers).
-        let mut rng = 0x1234_5678u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((rng >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0
-        };
-        for n in 0..200_000 {
-            let scale = [1.0, 10.0, 300.0, 1e5][n % 4];
-            let p = Vec3A::new(next(), next(), next()) * scale;
-            let p = if n % 7 == 0 { p.round() } else { p };
-            assert_eq!(
-                gradient_noise(p).to_bits(),
-                gradient_noise_scalar(p).to_bits(),
-                "at {p}"
-            );
-        }
     }
 
     #[test]
