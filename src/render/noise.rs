@@ -154,8 +154,6 @@ pub struct Billows {
     wavelength: [f32; MAX_OCTAVES],
     /// Evolution drift of each octave (noise units).
     drift: [Vec3A; MAX_OCTAVES],
-    /// Depth over wavelength of octave 0.
-    amplitude: f32,
     /// Full depth of each octave (world units): `a·λ_k·(λ_0/λ_k)^(1−`[`HURST`]`)`.
     depth: [f32; MAX_OCTAVES],
     /// Feature sizes at and above which octave `k` is surely at full depth (`F/λ_k ≥`
@@ -163,7 +161,8 @@ pub struct Billows {
     /// margin for rounding: between them [`Billows::depths`] divides, outside it need not.
     full_from: [f32; MAX_OCTAVES],
     absent_to: [f32; MAX_OCTAVES],
-    /// `Σ_k a·λ_k` (summed in [`Billows::depths`]' order): no part's total depth is larger.
+    /// `Σ_k` of the full depths (summed in [`Billows::depths`]' order): no part's total depth
+    /// is larger.
     max_total: f32,
 }
 
@@ -173,17 +172,17 @@ impl Billows {
     /// the others `amplitude × wavelength × (largest/wavelength)^(1−`[`HURST`]`)`;
     /// evolution `phase` (noise units, 0 = frozen).
     pub fn new(octaves: u32, largest: f32, finest: f32, amplitude: f32, phase: f32) -> Self {
+        let amplitude = amplitude.max(0.0);
         let mut b = Billows {
             n: 0,
             wavelength: [0.0; MAX_OCTAVES],
             drift: [Vec3A::ZERO; MAX_OCTAVES],
-            amplitude: amplitude.max(0.0),
             depth: [0.0; MAX_OCTAVES],
             full_from: [f32::INFINITY; MAX_OCTAVES],
             absent_to: [f32::NEG_INFINITY; MAX_OCTAVES],
             max_total: 0.0,
         };
-        if !(largest > 0.0) || b.amplitude == 0.0 {
+        if !(largest > 0.0) || amplitude == 0.0 {
             return b;
         }
         let mut lambda = largest;
@@ -192,7 +191,7 @@ impl Billows {
                 break;
             }
             b.wavelength[o] = lambda;
-            b.depth[o] = b.amplitude * lambda * (largest / lambda).powf(1.0 - HURST);
+            b.depth[o] = amplitude * lambda * (largest / lambda).powf(1.0 - HURST);
             b.drift[o] = EVOLVE_DIR[o % 3] * (phase * (1.0 + 0.5 * o as f32));
             b.n = o + 1;
             lambda /= LACUNARITY;
