@@ -9,6 +9,11 @@
 //! shadow edges. In light space nothing is resampled: the extinction is sampled once per node,
 //! straight from the medium, and summed along the light.
 //!
+//! A column samples every other node first, then a node between only where its two neighbours
+//! differ: in the empty shells inside the blob supports and in the uniform core the node takes
+//! its neighbours' value (about 40 % of the samples on a 400-blob cloud). What this can miss is
+//! narrower than two nodes along the light, as fine as the billows the light grid keeps.
+//!
 //! The grid covers the light-space box of the medium ([`Medium::bounds_in`]; for the blobs the
 //! exact box of their supports) padded by one node: past the cloud a column's depth is constant,
 //! and the columns outside the cloud are 0.
