@@ -392,72 +392,80 @@ mod tests {
         }
     }
 
-    #[test]
-    fn columns_sample_only_where_neighbours_differ_and_match_every_node() {
+    /// Node spacing of the test columns.
+    const H: f32 = 0.02;
+
+    /// One column of `nodes` nodes through [`Profile`] with `across` neighbours: its
+    /// extinction, its `[τ, e^{−τ}]` and the samples it took.
+    fn profile_column(
+        nodes: usize,
+        across: Option<(&[f32], &[f32])>,
+    ) -> (Vec<f32>, Vec<f32>, usize) {
         let m = Profile(AtomicUsize::new(0));
-        let (h, nodes) = (0.02, 120);
         let ray = Ray {
             origin: Vec3A::ZERO,
             dir: Vec3A::X,
         };
         let (mut sigma, mut out) = (vec![0.0; nodes], vec![0.0; 2 * nodes]);
-        column(&m, &mut (), &ray, h, None, &mut sigma, &mut out);
+        column(&m, &mut (), &ray, H, across, &mut sigma, &mut out);
+        (sigma, out, m.0.load(Ordering::Relaxed))
+    }
+
+    /// Whether node `j` lies in [`Profile`]'s intervals, as the column rounds them.
+    fn in_intervals(j: usize) -> bool {
+        Profile(AtomicUsize::new(0))
+            .intervals(&())
+            .iter()
+            .any(|iv| ((iv[0] / H).ceil() as usize..=(iv[1] / H).floor() as usize).contains(&j))
+    }
+
+    #[test]
+    fn columns_sample_only_where_neighbours_differ_and_match_every_node() {
+        let nodes = 120;
+        let (sigma, out, sampled) = profile_column(nodes, None);
         // Every node holds the medium's extinction there (0 outside the intervals).
         let mut inside = 0;
         for (j, &v) in sigma.iter().enumerate() {
-            let t = j as f32 * h;
-            let in_interval = m.intervals(&()).iter().any(|iv| iv[0] <= t && t <= iv[1]);
-            let exact = if in_interval { Profile::sigma(t) } else { 0.0 };
+            let exact = if in_intervals(j) {
+                Profile::sigma(j as f32 * H)
+            } else {
+                0.0
+            };
             assert_eq!(v, exact, "node {j}");
-            inside += in_interval as usize;
+            inside += in_intervals(j) as usize;
         }
         // About half the nodes inside the intervals were sampled (plus the ramp's and edges').
-        let sampled = m.0.load(Ordering::Relaxed);
         assert!(
             sampled < inside * 2 / 3 && sampled > inside / 2,
             "{sampled} samples for {inside} nodes"
         );
         // The depth is the trapezoid sum of those values.
-        let tau: f32 = sigma.windows(2).map(|w| 0.5 * (w[0] + w[1]) * h).sum();
+        let tau: f32 = sigma.windows(2).map(|w| 0.5 * (w[0] + w[1]) * H).sum();
         assert!((out[2 * nodes - 2] - tau).abs() < 1e-5 * tau, "{tau}");
         assert_eq!(out[2 * nodes - 1], (-out[2 * nodes - 2]).exp());
     }
 
     #[test]
     fn a_column_between_two_takes_their_value_where_they_agree_around_a_node() {
-        let m = Profile(AtomicUsize::new(0));
-        let (h, nodes) = (0.02, 120);
-        let ray = Ray {
-            origin: Vec3A::ZERO,
-            dir: Vec3A::X,
-        };
+        let nodes = 120;
         // The neighbours: 2.0 everywhere but for a step in one of them at node 60.
         let a = vec![2.0f32; nodes];
         let mut b = a.clone();
         b[60] = 0.5;
-        let (mut sigma, mut out) = (vec![0.0; nodes], vec![0.0; 2 * nodes]);
-        column(&m, &mut (), &ray, h, Some((&a, &b)), &mut sigma, &mut out);
-        // The nodes of each interval, as the column rounds them.
-        let ranges: Vec<_> = m
-            .intervals(&())
-            .iter()
-            .map(|iv| (iv[0] / h).ceil() as usize..=(iv[1] / h).floor() as usize)
-            .collect();
+        let (sigma, _, sampled) = profile_column(nodes, Some((&a, &b)));
         let mut inside = 0;
         for (j, &v) in sigma.iter().enumerate() {
-            let t = j as f32 * h;
-            let in_interval = ranges.iter().any(|r| r.contains(&j));
-            inside += in_interval as usize;
+            inside += in_intervals(j) as usize;
             // Nodes 59..=61 see the step beside them and are sampled; the others inside the
             // intervals take the neighbours' 2.0 (whatever the medium holds there).
-            let want = match (in_interval, (59..=61).contains(&j)) {
+            let want = match (in_intervals(j), (59..=61).contains(&j)) {
                 (false, _) => 0.0,
-                (true, true) => Profile::sigma(t),
+                (true, true) => Profile::sigma(j as f32 * H),
                 (true, false) => 2.0,
             };
             assert_eq!(v, want, "node {j}");
         }
         assert!(inside > 50);
-        assert_eq!(m.0.load(Ordering::Relaxed), 3);
+        assert_eq!(sampled, 3);
     }
 }
