@@ -16,7 +16,9 @@
 //! `NEPHELE_MITSUBA_DIR` (under the temp dir), `NEPHELE_MITSUBA_REUSE` (reuse its Mitsuba
 //! renders), `NEPHELE_MITSUBA_ONLY_SS`. Diagnosis: `NEPHELE_MITSUBA_QUALITY=grid,step,rays[,coarse]`
 //! overrides the quality, `NEPHELE_MITSUBA_BLACK_SKY` lights by the sun alone,
-//! `NEPHELE_MITSUBA_EXACT` marches the same-grid image's light depths exactly (minutes).
+//! `NEPHELE_MITSUBA_EXACT` marches the same-grid image's light depths exactly (minutes),
+//! `NEPHELE_MITSUBA_EXACT_SUN` the end-to-end single-scattering image's depth toward the sun
+//! (through the exported grid; a minute): what the light grid's resolution costs.
 
 #[path = "mitsuba_support/grid_medium.rs"]
 mod grid_medium;
@@ -143,11 +145,22 @@ fn write_inputs(
     let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
     nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
     let mut times = [0.0; 2];
+    let dense = grid_medium::DenseGrid::new(&grid);
     for (idx, ms) in [(0, false), (1, true)] {
         s.cloud.multiple_scattering = ms;
         let start = Instant::now();
         let m = BlobMedium::new(&s, &blobs);
-        let f = render_medium(&s, &m, &LightGrid::for_frame(&s, &m.for_light_grid(&s)));
+        let lg = LightGrid::for_frame(&s, &m.for_light_grid(&s));
+        let f = if !ms && std::env::var("NEPHELE_MITSUBA_EXACT_SUN").is_ok() {
+            let l = grid_medium::ExactSun {
+                grid: &dense,
+                sun_dir: s.sun.travel_dir().into(),
+                base: &lg,
+            };
+            render_medium(&s, &m, &l)
+        } else {
+            render_medium(&s, &m, &lg)
+        };
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
             "nephele_ms.f32"
@@ -159,7 +172,6 @@ fn write_inputs(
     // The light transport alone: nephele's integrator on Mitsuba's very grid, with a light grid
     // of the frame's quality (or, with NEPHELE_MITSUBA_EXACT, depths marched exactly: slow).
     s.cloud.multiple_scattering = false;
-    let dense = grid_medium::DenseGrid::new(&grid);
     let light_dir: glam::Vec3A = s.sun.travel_dir().into();
     let same_grid = if std::env::var("NEPHELE_MITSUBA_EXACT").is_ok() {
         render_medium(

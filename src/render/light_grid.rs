@@ -33,7 +33,7 @@ use super::sun_grid::SunGrid;
 /// frame).
 #[derive(Clone, Debug)]
 pub struct LightGrid {
-    /// Depth and transmittance toward the sun, on its own light-aligned grid.
+    /// Depth toward the sun, on its own light-aligned grid.
     sun: SunGrid,
     sky_shape: GridShape,
     sky_inv_h: f32,
@@ -187,11 +187,7 @@ impl LightGrid {
         for t in &mut sky {
             *t *= SKY_DEPTH_STEP;
         }
-        LightDepths {
-            sun: sun[0],
-            sun_transmittance: sun[1],
-            sky,
-        }
+        LightDepths { sun, sky }
     }
 }
 

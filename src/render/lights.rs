@@ -19,10 +19,6 @@ use super::sky_light::{SKY_DIRECTIONS, directions};
 pub struct LightDepths {
     /// Toward the sun.
     pub sun: f32,
-    /// Transmittance toward the sun, `e^{−sun}` where known exactly; a light grid interpolates
-    /// the transmittance itself (see [`super::light_grid`]), which differs from `e^{−sun}` of the
-    /// interpolated depth where the depth changes fast.
-    pub sun_transmittance: f32,
     /// Toward each sky cell.
     pub sky: [f32; SKY_DIRECTIONS],
 }
@@ -31,7 +27,6 @@ impl LightDepths {
     /// No medium in the way.
     pub const ZERO: LightDepths = LightDepths {
         sun: 0.0,
-        sun_transmittance: 1.0,
         sky: [0.0; SKY_DIRECTIONS],
     };
 }
@@ -83,7 +78,6 @@ impl Lights for HomogeneousLights {
         let sun = depth(-self.sun_dir);
         LightDepths {
             sun,
-            sun_transmittance: (-sun).exp(),
             sky: std::array::from_fn(|k| depth(dirs[k])),
         }
     }

@@ -173,7 +173,7 @@ impl Shading {
         if n == 1 {
             return InScattered {
                 sun_radiance: self.sun_radiance,
-                sun_single: w.sun[0] * tau.sun_transmittance,
+                sun_single: w.sun[0] * (-tau.sun).exp(),
                 sun_multiple: 0.0,
                 sky,
                 sky_multiple: Vec3A::ZERO,
@@ -199,8 +199,8 @@ impl Shading {
         }
         InScattered {
             sun_radiance: self.sun_radiance,
-            // Single scattering from the transmittance itself (exact where it is known).
-            sun_single: w.sun[0] * tau.sun_transmittance,
+            // Squared n − 1 times, `ts` is now `e^{−τ}`: single scattering's transmittance.
+            sun_single: w.sun[0] * ts,
             sun_multiple: sun,
             sky,
             sky_multiple: (self.sky_up * up + self.sky_down * down) * (0.5 * SKY_PHASE),

@@ -151,8 +151,25 @@ impl Lights for ExactLights<'_> {
         let sun = self.grid.depth(x, -self.sun_dir);
         LightDepths {
             sun,
-            sun_transmittance: (-sun).exp(),
             sky: std::array::from_fn(|k| self.grid.depth(x, dirs[k])),
         }
+    }
+}
+
+/// The sun's depth marched exactly through a [`DenseGrid`], the sky's from `base` (slow).
+pub struct ExactSun<'a, L> {
+    /// The grid marched toward the sun.
+    pub grid: &'a DenseGrid,
+    /// Direction sunlight travels.
+    pub sun_dir: Vec3A,
+    /// Where the sky's depths come from.
+    pub base: &'a L,
+}
+
+impl<L: Lights> Lights for ExactSun<'_, L> {
+    fn depths(&self, x: Vec3A) -> LightDepths {
+        let mut d = self.base.depths(x);
+        d.sun = self.grid.depth(x, -self.sun_dir);
+        d
     }
 }
