@@ -84,73 +84,106 @@ impl Shot {
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
         let mut renderer = crate::render::ShotRenderer::new();
-        for &frame in self.frames() {
-            let start = Instant::now();
-            let k = self.index(frame);
-            let blobs = self.blobs(k)?;
-            let settings = self.settings(k)?;
-            let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
-            let status = if opts.force {
-                FrameStatus::New
-            } else {
-                provenance::status(self, frame, hash)
-            };
-            let finished = status == FrameStatus::UpToDate;
-            // With statistics, finished frames are rendered again in memory (not written).
-            if finished && !opts.stats {
-                report.skipped += 1;
-                on_frame(&skipped(frame, last));
-                continue;
-            }
-            if let FrameStatus::OutOfDate(reason) = status {
-                match report.out_of_date.iter_mut().find(|(r, _)| *r == reason) {
-                    Some((_, n)) => *n += 1,
-                    None => report.out_of_date.push((reason, 1)),
-                }
-            }
-            // A region, passes and mattes come from their own march (no reuse of the last
-            // frame's light grid or frame); an open shutter with a moving cloud blurs.
-            let film = self.film()?;
-            let own;
-            let image = if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
-                own = crate::render::render_frame_blurred_film(&settings, &blobs, &shutter, film).0;
-                &own
-            } else if *film != crate::render::Film::default() {
-                own = crate::render::render_frame_film(&settings, &blobs, film);
-                &own
-            } else {
-                renderer.render(&settings, &blobs)
-            };
-            let rendered = Instant::now();
-            if !finished {
-                let out = files::FrameOutput {
-                    image,
-                    settings: &settings,
-                    blobs: &blobs,
-                    voxel,
-                    hash,
+        // A frame's files are encoded and written on their own thread while the next frame
+        // renders (one at a time, in order; its error stops the shot before the next write).
+        std::thread::scope(|scope| -> Result<(), SceneError> {
+            let mut writing: Option<Writer<'_>> = None;
+            let frames = self.frames();
+            for (n, &frame) in frames.iter().enumerate() {
+                let start = Instant::now();
+                let k = self.index(frame);
+                let blobs = self.blobs(k)?;
+                let settings = self.settings(k)?;
+                let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
+                let status = if opts.force {
+                    FrameStatus::New
+                } else {
+                    provenance::status(self, frame, hash)
                 };
-                files::write_frame(self, frame, &out)?;
+                let finished = status == FrameStatus::UpToDate;
+                // With statistics, finished frames are rendered again in memory (not written).
+                if finished && !opts.stats {
+                    report.skipped += 1;
+                    on_frame(&skipped(frame, last));
+                    continue;
+                }
+                if let FrameStatus::OutOfDate(reason) = status {
+                    match report.out_of_date.iter_mut().find(|(r, _)| *r == reason) {
+                        Some((_, n)) => *n += 1,
+                        None => report.out_of_date.push((reason, 1)),
+                    }
+                }
+                // A region, passes and mattes come from their own march (no reuse of the last
+                // frame's light grid or frame); an open shutter with a moving cloud blurs.
+                let film = self.film()?;
+                let own;
+                let image = if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
+                    own =
+                        crate::render::render_frame_blurred_film(&settings, &blobs, &shutter, film)
+                            .0;
+                    &own
+                } else if *film != crate::render::Film::default() {
+                    own = crate::render::render_frame_film(&settings, &blobs, film);
+                    &own
+                } else {
+                    renderer.render(&settings, &blobs)
+                };
+                let rendered = Instant::now();
+                finish_writing(&mut writing)?;
+                let written = Instant::now();
+                if !finished {
+                    if n + 1 < frames.len() {
+                        let (image, settings, blobs) =
+                            (image.clone(), settings.clone(), blobs.clone());
+                        writing = Some(scope.spawn(move || {
+                            let out = files::FrameOutput {
+                                image: &image,
+                                settings: &settings,
+                                blobs: &blobs,
+                                voxel,
+                                hash,
+                            };
+                            files::write_frame(self, frame, &out)
+                        }));
+                    } else {
+                        // The last frame: nothing to overlap with, so no copy of it.
+                        let out = files::FrameOutput {
+                            image,
+                            settings: &settings,
+                            blobs: &blobs,
+                            voxel,
+                            hash,
+                        };
+                        files::write_frame(self, frame, &out)?;
+                    }
+                }
+                let written_last = Instant::now();
+                if let Some(basis) = &basis {
+                    stats.push(basis.frame(frame, &blobs, Some(image)));
+                }
+                render_s += (rendered - start).as_secs_f64();
+                // Writing costs the shot only what it did not overlap: the wait for the previous
+                // frame's writer, and the last frame's own write.
+                write_s +=
+                    (written - rendered).as_secs_f64() + (written_last - written).as_secs_f64();
+                stats_s += written_last.elapsed().as_secs_f64();
+                if finished {
+                    report.skipped += 1;
+                } else {
+                    report.rendered += 1;
+                }
+                on_frame(&FrameReport {
+                    frame,
+                    of: last,
+                    skipped: finished,
+                    seconds: start.elapsed().as_secs_f64(),
+                });
             }
-            let written = Instant::now();
-            if let Some(basis) = &basis {
-                stats.push(basis.frame(frame, &blobs, Some(image)));
-            }
-            render_s += (rendered - start).as_secs_f64();
-            write_s += (written - rendered).as_secs_f64();
-            stats_s += written.elapsed().as_secs_f64();
-            if finished {
-                report.skipped += 1;
-            } else {
-                report.rendered += 1;
-            }
-            on_frame(&FrameReport {
-                frame,
-                of: last,
-                skipped: finished,
-                seconds: start.elapsed().as_secs_f64(),
-            });
-        }
+            let last_write = Instant::now();
+            finish_writing(&mut writing)?;
+            write_s += last_write.elapsed().as_secs_f64();
+            Ok(())
+        })?;
         timings.stages.push(("render".into(), render_s));
         timings.stages.push(("write".into(), write_s));
         if basis.is_some() {
@@ -179,6 +212,16 @@ impl Shot {
             })
             .collect()
     }
+}
+
+/// The thread writing a frame's files.
+type Writer<'scope> = std::thread::ScopedJoinHandle<'scope, Result<(), SceneError>>;
+
+/// Wait for the frame being written, if any, and pass on its error.
+fn finish_writing(writing: &mut Option<Writer<'_>>) -> Result<(), SceneError> {
+    writing
+        .take()
+        .map_or(Ok(()), |w| w.join().expect("the frame writer panicked"))
 }
 
 fn skipped(frame: u32, of: u32) -> FrameReport {

@@ -6,8 +6,8 @@
 //! Frames are numbered from `shot.start_frame` (default 1): frame number `f` is the shot's
 //! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`super::frames`]).
 
-use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use super::camera::camera_at;
 use super::frames::FrameSelection;
@@ -69,8 +69,8 @@ pub struct Shot {
     width: u32,
     height: u32,
     region: Option<Region>,
-    prepared: OnceCell<Prepared>,
-    film: OnceCell<Film>,
+    prepared: OnceLock<Prepared>,
+    film: OnceLock<Film>,
 }
 
 impl Shot {
@@ -126,8 +126,8 @@ impl Shot {
             width,
             height,
             region,
-            prepared: OnceCell::new(),
-            film: OnceCell::new(),
+            prepared: OnceLock::new(),
+            film: OnceLock::new(),
         })
     }
 
