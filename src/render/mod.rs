@@ -37,6 +37,7 @@ pub mod color;
 pub mod counters;
 pub mod cryptomatte;
 pub mod density;
+pub mod fast_exp;
 pub mod film;
 pub mod integrate;
 pub mod lattice;

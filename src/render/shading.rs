@@ -14,6 +14,7 @@
 
 use glam::Vec3A;
 
+use super::fast_exp::{exp_neg, exp_neg_all};
 use super::lights::LightDepths;
 use super::phase::cloud_phase;
 use super::settings::RenderSettings;
@@ -166,14 +167,14 @@ impl Shading {
     #[inline]
     pub fn in_scattered(&self, w: &RayWeights, tau: &LightDepths) -> InScattered {
         let mut sky = Vec3A::ZERO;
-        for (wk, &t) in w.sky.iter().zip(&tau.sky) {
-            sky += *wk * (-t).exp();
+        for (wk, t) in w.sky.iter().zip(exp_neg_all(&tau.sky)) {
+            sky += *wk * t;
         }
         let n = self.octaves as usize;
         if n == 1 {
             return InScattered {
                 sun_radiance: self.sun_radiance,
-                sun_single: w.sun[0] * (-tau.sun).exp(),
+                sun_single: w.sun[0] * exp_neg(tau.sun),
                 sun_multiple: 0.0,
                 sky,
                 sky_multiple: Vec3A::ZERO,
@@ -182,9 +183,9 @@ impl Shading {
         // exp(−τ·2^−i) for i = n−1 first, then squared down to i = 0: one exp per depth.
         let first = 1.0 / (1u32 << (n - 1)) as f32;
         let (mut ts, mut tu, mut td) = (
-            (-tau.sun * first).exp(),
-            (-tau.sky[UP] * first).exp(),
-            (-tau.sky[DOWN] * first).exp(),
+            exp_neg(tau.sun * first),
+            exp_neg(tau.sky[UP] * first),
+            exp_neg(tau.sky[DOWN] * first),
         );
         let (mut sun, mut up, mut down) = (0.0, 0.0, 0.0);
         let mut b = self.ms_weight_last;
