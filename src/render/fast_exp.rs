@@ -19,14 +19,15 @@ pub fn exp_neg(tau: f32) -> f32 {
     // Adding and subtracting 1.5·2²³ rounds to the nearest integer (no `round` call, which
     // is a library call without SSE4.1).
     const ROUND: f32 = 12_582_912.0;
-    // `max`/`min` on the negated value: NaN goes to 0 (`f32::max` returns the other operand).
+    // `min`/`max`, not `clamp`: a NaN depth goes to 0 (`f32::min` returns the other operand).
+    #[allow(clippy::manual_clamp)]
     let x = (-tau).min(0.0).max(-MAX_DEPTH);
     let n = (x * LOG2E + ROUND) - ROUND;
     let r = x - n * C1 - n * C2;
     let p = ((((1.987_569_1e-4 * r + 1.398_199_9e-3) * r + 8.333_452e-3) * r + 4.166_579_6e-2) * r
         + 1.666_666_5e-1)
         * r
-        + 5.000_000_1e-1;
+        + 0.5;
     let er = p * r * r + r + 1.0;
     // 2ⁿ from its exponent bits: `n ∈ [−126, 0]` here, a normal number.
     er * f32::from_bits(((n as i32 + 127) as u32) << 23)
