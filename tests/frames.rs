@@ -279,6 +279,26 @@ fn a_scene_edit_rerenders_exactly_the_frames_it_changes() {
 }
 
 #[test]
+fn a_frame_that_cannot_be_written_stops_the_shot_there() {
+    // Frames are written on their own thread while the next renders: frame 2's PNG path is
+    // taken by a directory, so its write fails; the shot must stop with that path, frame 1
+    // finished, frames 2.. without a manifest (and frame 3, rendered meanwhile, not written).
+    let dir = temp_dir("unwritable");
+    write_scene(&dir, "w", "width: 32, height: 18, fps: 4, seconds: 1.0", "");
+    let out = dir.join("out");
+    std::fs::create_dir_all(out.join("w_0002.png")).unwrap();
+    let t = fails(nephele(&dir).args(["render", "w.ron"]));
+    assert!(t.contains("w_0002.png"), "{t}");
+    assert_eq!(manifests(&out).into_keys().collect::<Vec<_>>(), [1], "{t}");
+    assert!(!out.join("w_0003.exr").exists() && !out.join("w_0003.png").exists());
+    // Once the path is free the shot resumes from frame 2.
+    std::fs::remove_dir(out.join("w_0002.png")).unwrap();
+    let t = run(nephele(&dir).args(["render", "w.ron"]));
+    assert!(t.contains("3 frames rendered, 1 already done"), "{t}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn exr_frames_carry_colour_and_rate_and_acescg_is_the_exact_conversion() {
     let dir = temp_dir("colour");
     let shot = "width: 40, height: 24, fps: 23.976, seconds: 0.2";
