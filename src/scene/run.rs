@@ -113,20 +113,10 @@ impl Shot {
                         None => report.out_of_date.push((reason, 1)),
                     }
                 }
-                // A region, passes and mattes come from their own march (no reuse of the last
-                // frame's light grid or frame); an open shutter with a moving cloud blurs.
-                let film = self.film()?;
-                let own;
-                let image = if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
-                    own =
-                        crate::render::render_frame_blurred_film(&settings, &blobs, &shutter, film)
-                            .0;
-                    &own
-                } else if *film != crate::render::Film::default() {
-                    own = crate::render::render_frame_film(&settings, &blobs, film);
-                    &own
-                } else {
-                    renderer.render(&settings, &blobs)
+                let own = self.own_march(k, &settings, &blobs)?;
+                let image = match &own {
+                    Some(frame) => frame,
+                    None => renderer.render(&settings, &blobs),
                 };
                 let rendered = Instant::now();
                 finish_writing(&mut writing)?;
@@ -198,6 +188,27 @@ impl Shot {
 }
 
 impl Shot {
+    /// Frame `k` when it needs its own march: a region, passes and mattes (no reuse of the last
+    /// frame's light grid or frame), or an open shutter with a moving cloud (blurred). `None`:
+    /// the shot's renderer makes it.
+    fn own_march(
+        &self,
+        k: u32,
+        settings: &crate::render::RenderSettings,
+        blobs: &[crate::blobby::Blob],
+    ) -> Result<Option<crate::render::Frame>, SceneError> {
+        let film = self.film()?;
+        Ok(
+            if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
+                Some(crate::render::render_frame_blurred_film(settings, blobs, &shutter, film).0)
+            } else if *film != crate::render::Film::default() {
+                Some(crate::render::render_frame_film(settings, blobs, film))
+            } else {
+                None
+            },
+        )
+    }
+
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
     /// with the reason (the run's rule, for `prepare` and the farm).
     pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
