@@ -126,25 +126,11 @@ impl Shot {
                         let (image, settings, blobs) =
                             (image.clone(), settings.clone(), blobs.clone());
                         writing = Some(scope.spawn(move || {
-                            let out = files::FrameOutput {
-                                image: &image,
-                                settings: &settings,
-                                blobs: &blobs,
-                                voxel,
-                                hash,
-                            };
-                            files::write_frame(self, frame, &out)
+                            write_files(self, frame, &image, &settings, &blobs, (voxel, hash))
                         }));
                     } else {
                         // The last frame: nothing to overlap with, so no copy of it.
-                        let out = files::FrameOutput {
-                            image,
-                            settings: &settings,
-                            blobs: &blobs,
-                            voxel,
-                            hash,
-                        };
-                        files::write_frame(self, frame, &out)?;
+                        write_files(self, frame, image, &settings, &blobs, (voxel, hash))?;
                     }
                 }
                 let written_last = Instant::now();
@@ -223,6 +209,26 @@ impl Shot {
             })
             .collect()
     }
+}
+
+/// Write frame `frame`'s files ([`files::write_frame`]) with the grids' voxel size and the
+/// frame's provenance hash.
+fn write_files(
+    shot: &Shot,
+    frame: u32,
+    image: &crate::render::Frame,
+    settings: &crate::render::RenderSettings,
+    blobs: &[crate::blobby::Blob],
+    (voxel, hash): (f64, u64),
+) -> Result<(), SceneError> {
+    let out = files::FrameOutput {
+        image,
+        settings,
+        blobs,
+        voxel,
+        hash,
+    };
+    files::write_frame(shot, frame, &out)
 }
 
 /// The thread writing a frame's files.
