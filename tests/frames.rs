@@ -604,7 +604,8 @@ fn windows_and_channels(
 #[test]
 fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
     let dir = temp_dir("region");
-    // Production: 4 rays a pixel; an open shutter on a moving aggregation: the blurred path.
+    // Production (the edge anti-aliased, a finer light grid); an open shutter on a moving
+    // aggregation: the blurred path, 8 rays a pixel.
     let shot = "width: 48, height: 27, fps: 6, seconds: 1.0, shutter: 0.5";
     let extra = "animation: Aggregation(()), quality: Production, \
                  output: (dir: \"out\", formats: [Exr, Png], passes: true)";

@@ -14,7 +14,7 @@
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
 //! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells, 256),
 //! `NEPHELE_MITSUBA_DIR` (under the temp dir), `NEPHELE_MITSUBA_REUSE` (reuse its Mitsuba
-//! renders), `NEPHELE_MITSUBA_ONLY_SS`. Diagnosis: `NEPHELE_MITSUBA_QUALITY=grid,step,rays[,coarse]`
+//! renders), `NEPHELE_MITSUBA_ONLY_SS`. Diagnosis: `NEPHELE_MITSUBA_QUALITY=grid,step,rays[,coarse[,edge[,cell_px]]]`
 //! overrides the quality, `NEPHELE_MITSUBA_BLACK_SKY` lights by the sun alone,
 //! `NEPHELE_MITSUBA_EXACT` marches the same-grid image's light depths exactly (minutes),
 //! `NEPHELE_MITSUBA_EXACT_SUN` the end-to-end single-scattering image's depth toward the sun
@@ -121,13 +121,19 @@ fn write_inputs(
     let blobs = shot.blobs(k).unwrap();
     let mut s = shot.settings(k).unwrap();
     if let Ok(q) = std::env::var("NEPHELE_MITSUBA_QUALITY") {
-        // Experiments: "shadow_grid,optical_step,samples[,step_scale]".
+        // Experiments: "shadow_grid,optical_step,samples[,step_scale[,edge_samples[,cell_px]]]".
         let v: Vec<f32> = q.split(',').map(|x| x.parse().unwrap()).collect();
         s.quality.shadow_grid = v[0] as u32;
         s.quality.optical_step = v[1];
         s.quality.samples = v[2] as u32;
         if let Some(&step) = v.get(3) {
             s.quality.step_scale = step;
+        }
+        if let Some(&edge) = v.get(4) {
+            s.quality.edge_samples = edge as u32;
+        }
+        if let Some(&cell) = v.get(5) {
+            s.quality.shadow_cell_pixels = cell;
         }
     }
     if std::env::var("NEPHELE_MITSUBA_BLACK_SKY").is_ok() {

@@ -9,7 +9,9 @@
 //! shimmer in holds).
 //!
 //! With `quality.samples = n > 1` a pixel averages `n` rays on a stratified `⌈√n⌉²` grid
-//! inside it (each jittered within its cell), anti-aliasing the eroded edges.
+//! inside it (each jittered within its cell), anti-aliasing the eroded edges. With one ray a
+//! pixel and `quality.edge_samples = n > 1`, only the pixels whose first ray is partly covered
+//! trace `n` more (adaptive anti-aliasing of the silhouette, at the cost of its pixels).
 //!
 //! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
 //! the medium, see [`march`]; fine steps are thin where the ray enters the cloud and grow as its
@@ -37,7 +39,7 @@ use super::cryptomatte::{Coverage, IdMattes, RANKS, Rank};
 use super::film::{Film, Region};
 use super::lights::{Lights, Unshadowed};
 use super::medium::Medium;
-use super::settings::RenderSettings;
+use super::settings::{EDGE_COVERAGE, RenderSettings};
 use super::shading::Shading;
 use crate::rng::{Stream, item_rng};
 
@@ -146,6 +148,8 @@ fn render_tiles<M: Medium, L: Lights>(
     let seed = settings.seed;
     let samples = settings.quality.samples.max(1);
     let side = (samples as f32).sqrt().ceil() as u32;
+    let edge = settings.quality.edge_samples;
+    let edge_side = (edge as f32).sqrt().ceil() as u32;
     let optical_step = settings.quality.optical_step.max(1e-3);
     render_film(
         settings,
@@ -156,8 +160,8 @@ fn render_tiles<M: Medium, L: Lights>(
         |scratch, (x, y), coverage| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut rng = item_rng(seed, Stream::Render, pixel);
-            let mut ray = |k: u32| {
-                let (ray, jitter) = pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
+            let mut ray = |k: u32, grid: (u32, u32)| {
+                let (ray, jitter) = pixel_sample(&cam, (x, y), k, grid, &mut rng);
                 trace(
                     medium,
                     lights,
@@ -170,15 +174,34 @@ fn render_tiles<M: Medium, L: Lights>(
                 )
             };
             if samples == 1 {
-                return (ray(0), 1);
+                let first = ray(0, (1, 1));
+                if edge <= 1 || !at_edge(&first) {
+                    return (first, 1);
+                }
+                // The centre ray stays one of the pixel's rays (no ray is wasted; the
+                // generator's stream simply goes on).
+                let mut sum = PixelSum::new();
+                sum.add(&first);
+                for k in 0..edge {
+                    sum.add(&ray(k, (edge, edge_side)));
+                }
+                return (sum.mean(edge + 1), edge + 1);
             }
             let mut sum = PixelSum::new();
             for k in 0..samples {
-                sum.add(&ray(k));
+                sum.add(&ray(k, (samples, side)));
             }
             (sum.mean(samples), samples)
         },
     )
+}
+
+/// Whether a pixel's first ray ended at the cloud's edge ([`EDGE_COVERAGE`]): the pixels
+/// [`super::Quality::edge_samples`] anti-aliases.
+#[inline]
+fn at_edge(first: &PixelResult) -> bool {
+    let coverage = 1.0 - first.transmittance;
+    coverage > EDGE_COVERAGE.0 && coverage < EDGE_COVERAGE.1
 }
 
 /// One row of tiles: the frame's buffers for its [`TILE`] rows of pixels (full width), which

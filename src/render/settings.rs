@@ -214,9 +214,16 @@ pub enum QualityPreset {
     /// The default: clean frames at one sample per pixel.
     #[default]
     Final,
-    /// Anti-aliased (4 samples per pixel), finer steps and shadows: about 4–5× `Final`.
+    /// A light grid twice as fine, finer steps, and the cloud's edge anti-aliased (8 more rays
+    /// at each partly covered pixel): for backlit shots, whose silver lining is sub-pixel detail
+    /// against a bright sky. About 5–7× `Final`.
     Production,
 }
+
+/// A pixel's first ray is at the cloud's edge when its coverage `1 − T` lies strictly inside
+/// these bounds ([`Quality::edge_samples`]): past the upper one the march stopped in the
+/// opaque body, below the lower one it met no cloud worth resolving.
+pub const EDGE_COVERAGE: (f32, f32) = (1e-3, 0.999);
 
 /// Fewest cells [`RenderSettings::light_grid_cells`] gives a light grid (a cloud a few pixels
 /// wide still gets a shadowed side).
@@ -245,6 +252,12 @@ pub struct Quality {
     pub optical_step: f32,
     /// Rays per pixel (stratified inside the pixel; 1 = through the pixel centre).
     pub samples: u32,
+    /// Adaptive anti-aliasing of the cloud's edge: with one ray a pixel, a pixel whose ray's
+    /// coverage is partial (between [`EDGE_COVERAGE`]'s bounds) traces this many more,
+    /// stratified inside it, and averages all of them. The silhouette against a bright sky (a
+    /// backlit cloud's silver lining) then costs its edge pixels' rays only, not every
+    /// pixel's. 0 or 1: off.
+    pub edge_samples: u32,
     /// Time samples across an open shutter (`shot.shutter > 0`; motion blur): a pixel then
     /// traces `max(samples, time_samples)` rays, each at its own time stratum. Unused when the
     /// shutter is closed.
@@ -257,13 +270,19 @@ impl Quality {
         match preset {
             QualityPreset::Preview => Quality::preview(),
             QualityPreset::Final => Quality::final_frame(),
+            // Measured on the backlit golden-hour shot against Mitsuba 3 (README): the light
+            // grid's cells and the edge's rays are what bring its silver lining within 5 %;
+            // rays in the opaque body and steps finer than 0.04 barely move it. A fourth
+            // scattering octave made that shot's multiple scattering 35 % brighter than full
+            // transport (three: within 3 %).
             QualityPreset::Production => Quality {
                 step_scale: 0.2,
-                shadow_grid: 256,
+                shadow_grid: 448,
                 shadow_cell_pixels: 0.5,
-                ms_octaves: 4,
-                optical_step: 0.02,
-                samples: 4,
+                ms_octaves: 3,
+                optical_step: 0.04,
+                samples: 1,
+                edge_samples: 8,
                 time_samples: 8,
             },
         }
@@ -278,6 +297,7 @@ impl Quality {
             ms_octaves: 3,
             optical_step: 0.08,
             samples: 1,
+            edge_samples: 0,
             time_samples: 4,
         }
     }
@@ -291,6 +311,7 @@ impl Quality {
             ms_octaves: 2,
             optical_step: 0.2,
             samples: 1,
+            edge_samples: 0,
             time_samples: 2,
         }
     }
