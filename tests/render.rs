@@ -99,6 +99,32 @@ fn chord(o: Vec3A, d: Vec3A, c: Vec3A, r: f32) -> f32 {
     if disc <= 0.0 { 0.0 } else { 2.0 * disc.sqrt() }
 }
 
+/// Centre and radius of [`hard_ball`]'s iso-sphere.
+const BALL_CENTER: Vec3A = Vec3A::new(0.0, 0.1, 0.0);
+const BALL_RADIUS: f32 = 0.6;
+
+/// One spherical blob whose cloud (set on `s`) is uniform inside its iso-sphere: density
+/// `density` (σ = density / 2 with the length unit 2), a hard edge, no noise.
+fn hard_ball(s: &mut RenderSettings, density: f32) -> Blob {
+    s.cloud = CloudMaterial {
+        density,
+        edge: 0.0,
+        noise: Noise {
+            amplitude: 0.0,
+            ..Noise::default()
+        },
+        ..CloudMaterial::default()
+    };
+    s.length_scale = 2.0;
+    Blob {
+        center: BALL_CENTER.as_dvec3(),
+        rotation: DQuat::IDENTITY,
+        semi_axes: DVec3::splat(BALL_RADIUS as f64),
+        a: 1.0,
+        b: 2.0,
+    }
+}
+
 #[test]
 fn uniform_ball_coverage_matches_beer_lambert() {
     let s = settings(64, 36, Quality::final_frame());
@@ -138,29 +164,12 @@ fn single_blob_sphere_coverage_is_close_to_analytic() {
             ..Quality::final_frame()
         },
     );
-    s.cloud = CloudMaterial {
-        density: 5.0,
-        edge: 0.0,
-        noise: Noise {
-            amplitude: 0.0,
-            ..Noise::default()
-        },
-        ..CloudMaterial::default()
-    };
-    s.length_scale = 2.0;
-    let r = 0.6;
-    let blob = Blob {
-        center: DVec3::new(0.0, 0.1, 0.0),
-        rotation: DQuat::IDENTITY,
-        semi_axes: DVec3::splat(r),
-        a: 1.0,
-        b: 2.0,
-    };
+    let (blob, r) = (hard_ball(&mut s, 5.0), BALL_RADIUS);
     let frame = render_frame(&s, &[blob]);
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
     for (x, y) in [(32, 18), (30, 16), (35, 21)] {
         let ray = cam.pixel_ray(x, y);
-        let ch = chord(ray.origin, ray.dir, Vec3A::new(0.0, 0.1, 0.0), r as f32);
+        let ch = chord(ray.origin, ray.dir, BALL_CENTER, r);
         let expected = 1.0 - (-2.5 * ch).exp();
         let got = frame.alpha[(y * 64 + x) as usize];
         assert!(
@@ -178,24 +187,8 @@ fn edge_samples_anti_alias_only_the_partly_covered_pixels() {
     // `1 − e^{−σ·chord}`: the pixels there are partly covered, and their box-filtered coverage
     // (what a pixel sees) is known in closed form, integrated here on 16×16 points a pixel.
     let mut s = settings(64, 36, Quality::final_frame());
-    s.cloud = CloudMaterial {
-        density: 1.0,
-        edge: 0.0,
-        noise: Noise {
-            amplitude: 0.0,
-            ..Noise::default()
-        },
-        ..CloudMaterial::default()
-    };
-    s.length_scale = 2.0;
-    let (c, r) = (Vec3A::new(0.0, 0.1, 0.0), 0.6);
-    let blob = Blob {
-        center: c.as_dvec3(),
-        rotation: DQuat::IDENTITY,
-        semi_axes: DVec3::splat(r as f64),
-        a: 1.0,
-        b: 2.0,
-    };
+    let blob = hard_ball(&mut s, 1.0);
+    let (c, r) = (BALL_CENTER, BALL_RADIUS);
     let one = render_frame(&s, std::slice::from_ref(&blob));
     s.quality.edge_samples = 16;
     let aa = render_frame(&s, std::slice::from_ref(&blob));
