@@ -66,7 +66,7 @@ const SWEEPS_AT_ONCE: usize = 7;
 
 /// Resolution of the stored sky depths (optical depth per `u16` step; a power of two, so the
 /// scaling is exact): 2⁻⁹ up to a depth of 128, where even the weakest multiple-scattering
-/// octave's transmittance (`e^{−τ/8}` at `Production`) is 10⁻⁷. Half the memory of `f32` (the
+/// octave's transmittance (`e^{−τ/8}` with four octaves) is 10⁻⁷. Half the memory of `f32` (the
 /// sky's 26 depths a node were the light grid's largest buffer) for a depth error of at most
 /// 10⁻³, a transmittance error of 0.1 %.
 pub const SKY_DEPTH_STEP: f32 = 1.0 / 512.0;
