@@ -216,7 +216,7 @@ pub enum QualityPreset {
     Final,
     /// A light grid twice as fine, finer steps, and the cloud's edge anti-aliased (8 more rays
     /// at each partly covered pixel): for backlit shots, whose silver lining is sub-pixel detail
-    /// against a bright sky. About 5–7× `Final`.
+    /// against a bright sky. About 5–8× `Final` (`scenes/README.md`).
     Production,
 }
 
