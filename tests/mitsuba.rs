@@ -12,7 +12,8 @@
 //! Full comparison (documented in the README):
 //! `cargo test --release --test mitsuba -- --ignored --nocapture mitsuba_full`
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
-//! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells, 256),
+//! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells along the cloud's
+//! longest side, 1,024, fewer where a `.vol` file's 2²⁸ voxels cannot hold them),
 //! `NEPHELE_MITSUBA_DIR` (under the temp dir), `NEPHELE_MITSUBA_REUSE` (reuse its Mitsuba
 //! renders), `NEPHELE_MITSUBA_ONLY_SS`. Diagnosis: `NEPHELE_MITSUBA_QUALITY=grid,step,rays[,coarse[,edge[,cell_px]]]`
 //! overrides the quality, `NEPHELE_MITSUBA_BLACK_SKY` lights by the sun alone,
@@ -147,8 +148,24 @@ fn write_inputs(
     // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
     let m = BlobMedium::new(&s, &blobs);
     let (lo, hi) = m.bounds().expect("a live cloud");
-    let voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
-    let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
+    let mut voxel = ((hi - lo).max_element() / grid_res as f32) as f64;
+    // As fine as asked, or as a `.vol` file holds (a wide cloud's box at 1,024 cells does not
+    // fit its 2²⁸ voxels): the reference's grid is what limits how well it rebuilds the rim.
+    let grid = loop {
+        let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
+        let (a, b) = grid.active_index_bounds().unwrap_or(([0; 3], [0; 3]));
+        let count: u64 = (0..3).map(|k| (b[k] - a[k] + 1) as u64).product();
+        let max = nephele::export::vol::MAX_VOL_VOXELS;
+        if count <= max {
+            break grid;
+        }
+        voxel *= (count as f64 / max as f64).cbrt() * 1.01;
+        eprintln!(
+            "{count} voxels do not fit a .vol file: {:.0} cells instead of {grid_res}",
+            (hi - lo).max_element() as f64 / voxel
+        );
+    };
+    let grid_cells = ((hi - lo).max_element() as f64 / voxel).round();
     nephele::export::vol::write_vol(&dir.join("grid.vol"), &grid).unwrap();
     let mut times = [0.0; 2];
     let dense = grid_medium::DenseGrid::new(&grid);
@@ -206,7 +223,7 @@ fn write_inputs(
     let meta = format!(
         r#"{{"width": {}, "height": {}, "position": {}, "look_at": {}, "up": {}, "fov_deg": {},
 "sun_dir": {}, "sun_irradiance": {}, "albedo": {}, "g": {}, "back_weight": {}, "back_ratio": {},
-"sky_size": [{sw}, {sh}],
+"sky_size": [{sw}, {sh}], "grid_cells": {grid_cells},
 "exposure": {}, "nephele_seconds_ss": {}, "nephele_seconds_ms": {}}}"#,
         s.width,
         s.height,
@@ -339,7 +356,7 @@ fn mitsuba_full_comparison() {
     let grid_res = std::env::var("NEPHELE_MITSUBA_GRID")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(256);
+        .unwrap_or(1024);
     let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), grid_res, &dir);
     eprintln!("nephele: single scattering {ss:.3} s, with the MS approximation {ms:.3} s");
     // The README's pictures: renders/mitsuba-<scene>.png (the default scene's is
