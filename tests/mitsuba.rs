@@ -153,8 +153,7 @@ fn write_inputs(
     // fit its 2²⁸ voxels): the reference's grid is what limits how well it rebuilds the rim.
     let grid = loop {
         let grid = nephele::export::grid::sample_medium(&m, lo, hi, voxel).unwrap();
-        let (a, b) = grid.active_index_bounds().unwrap_or(([0; 3], [0; 3]));
-        let count: u64 = (0..3).map(|k| (b[k] - a[k] + 1) as u64).product();
+        let count = nephele::export::vol::vol_voxels(&grid);
         let max = nephele::export::vol::MAX_VOL_VOXELS;
         if count <= max {
             break grid;

@@ -173,25 +173,24 @@ fn render_tiles<M: Medium, L: Lights>(
                     coverage,
                 )
             };
-            if samples == 1 {
+            let mut sum = PixelSum::new();
+            let (n, grid) = if samples > 1 {
+                (samples, (samples, side))
+            } else {
                 let first = ray(0, (1, 1));
                 if edge <= 1 || !at_edge(&first) {
                     return (first, 1);
                 }
                 // The centre ray stays one of the pixel's rays (no ray is wasted; the
                 // generator's stream simply goes on).
-                let mut sum = PixelSum::new();
                 sum.add(&first);
-                for k in 0..edge {
-                    sum.add(&ray(k, (edge, edge_side)));
-                }
-                return (sum.mean(edge + 1), edge + 1);
+                (edge, (edge, edge_side))
+            };
+            for k in 0..n {
+                sum.add(&ray(k, grid));
             }
-            let mut sum = PixelSum::new();
-            for k in 0..samples {
-                sum.add(&ray(k, (samples, side)));
-            }
-            (sum.mean(samples), samples)
+            let rays = n + (samples == 1) as u32;
+            (sum.mean(rays), rays)
         },
     )
 }
