@@ -52,6 +52,22 @@ pub struct BlobScratch {
     dt: f32,
     /// The hits spanning the last sampled `t`, in `hits`' order (see [`ActiveHits`]).
     active: ActiveHits,
+    /// The tile's candidates' coordinates of one ray origin (see [`OriginCache`]).
+    origin: OriginCache,
+}
+
+/// The unit-support and noise coordinates of one ray origin in each of the tile's candidates'
+/// frames. A camera's rays all start at its eye, so a tile's rays share them: the first ray of
+/// a tile fills the cache and the others reuse it, half of the gather's matrix products. Rays
+/// from elsewhere (the light grid's columns) compute their own.
+#[derive(Debug, Default)]
+struct OriginCache {
+    /// The origin the cache holds; `None` until the tile's first ray.
+    origin: Option<Vec3A>,
+    /// Per candidate (the tile's order): `M·(origin − c)`.
+    unit: Vec<Vec3A>,
+    /// Per candidate: `N·(origin − c) + offset`.
+    noise: Vec<Vec3A>,
 }
 
 /// The hits of the current ray that span the sample, kept as the ray's samples move forward:
@@ -119,6 +135,8 @@ pub struct BlobMedium {
     center: Vec<Vec3A>,
     /// `diag(1/(s√(1+A)))·Rᵀ`: world offset → unit-support coordinates.
     unit_from_world: Vec<Mat3A>,
+    /// Its transpose (the density's gradient needs it at every hit).
+    unit_from_world_t: Vec<Mat3A>,
     /// `(frequency/L)·Rᵀ`: world offset → noise coordinates (before the offset).
     noise_from_world: Vec<Mat3A>,
     noise_offset: Vec<Vec3A>,
@@ -183,6 +201,7 @@ impl BlobMedium {
             index: Vec::new(),
             center: Vec::new(),
             unit_from_world: Vec::new(),
+            unit_from_world_t: Vec::new(),
             noise_from_world: Vec::new(),
             noise_offset: Vec::new(),
             b2: Vec::new(),
@@ -251,8 +270,9 @@ impl BlobMedium {
             }
             m.index.push(index as u32);
             m.center.push(center);
-            m.unit_from_world
-                .push(Mat3A::from_diagonal(support.recip()) * local_from_world);
+            let unit_from_world = Mat3A::from_diagonal(support.recip()) * local_from_world;
+            m.unit_from_world.push(unit_from_world);
+            m.unit_from_world_t.push(unit_from_world.transpose());
             m.noise_from_world.push(local_from_world * freq);
             m.noise_offset.push(offset);
             m.b2.push((b * b) as f32);
@@ -315,42 +335,74 @@ impl BlobMedium {
         Some((lo, hi))
     }
 
+    /// Blob `i`'s unit-support and noise coordinates of the point `x` (world) at time offset
+    /// `dt` from the medium's time (`moving`: the blobs have velocities and `dt ≠ 0`).
+    #[inline]
+    fn coordinates(&self, i: usize, x: Vec3A, dt: f32, moving: bool) -> (Vec3A, Vec3A) {
+        let rel = if moving {
+            x - (self.center[i] + self.velocity[i] * dt)
+        } else {
+            x - self.center[i]
+        };
+        (
+            self.unit_from_world[i] * rel,
+            self.noise_from_world[i] * rel + self.noise_offset[i],
+        )
+    }
+
     /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
-    /// merged spans into `intervals`.
+    /// merged spans into `intervals`; `origin` caches the candidates' coordinates of a ray
+    /// origin (filled by the tile's first ray; the same bits as computing them per ray).
     fn gather(
         &self,
         candidates: &[u32],
         ray: &Ray,
         dt: f32,
+        origin: &mut OriginCache,
         hits: &mut Vec<Hit>,
         ivs: &mut Vec<[f32; 2]>,
     ) {
         hits.clear();
         ivs.clear();
         let moving = dt != 0.0 && !self.velocity.is_empty();
-        for &i in candidates {
+        if !moving && origin.origin.is_none() {
+            origin.origin = Some(ray.origin);
+            origin.unit.clear();
+            origin.noise.clear();
+            for &i in candidates {
+                let (o, no) = self.coordinates(i as usize, ray.origin, 0.0, false);
+                origin.unit.push(o);
+                origin.noise.push(no);
+            }
+        }
+        let cached = !moving && origin.origin == Some(ray.origin);
+        for (j, &i) in candidates.iter().enumerate() {
             let i = i as usize;
             let m = self.unit_from_world[i];
-            let rel = if moving {
-                ray.origin - (self.center[i] + self.velocity[i] * dt)
+            let o = if cached {
+                origin.unit[j]
             } else {
-                ray.origin - self.center[i]
+                self.coordinates(i, ray.origin, dt, moving).0
             };
-            let (o, d) = (m * rel, m * ray.dir);
+            let d = m * ray.dir;
             if let Some((t0, t1)) = ray_ellipsoid(o, d) {
-                let n = self.noise_from_world[i];
+                let no = if cached {
+                    origin.noise[j]
+                } else {
+                    self.coordinates(i, ray.origin, dt, moving).1
+                };
                 hits.push(Hit {
                     blob: self.index[i],
                     t0,
                     t1,
                     b2: self.b2[i],
-                    a_t: m.transpose(),
+                    a_t: self.unit_from_world_t[i],
                     feature: self.feature[i],
                     half_min_support: self.half_min_support[i],
                     o,
                     d,
-                    no: n * rel + self.noise_offset[i],
-                    nd: n * ray.dir,
+                    no,
+                    nd: self.noise_from_world[i] * ray.dir,
                 });
             }
         }
@@ -422,6 +474,7 @@ impl Medium for BlobMedium {
 
     fn begin_tile(&self, frustum: &Frustum, s: &mut BlobScratch) {
         s.tile.clear();
+        s.origin.origin = None;
         if self.velocity.is_empty() || self.sweep == 0.0 {
             s.tile.extend((0..self.len() as u32).filter(|&i| {
                 frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
@@ -443,8 +496,9 @@ impl Medium for BlobMedium {
             intervals,
             active,
             dt,
+            origin,
         } = s;
-        self.gather(tile, ray, *dt, hits, intervals);
+        self.gather(tile, ray, *dt, origin, hits, intervals);
         active.reset();
     }
 
@@ -615,13 +669,56 @@ mod tests {
         };
         let (mut hits, mut ivs) = (Vec::new(), Vec::new());
         let all: Vec<u32> = (0..m.len() as u32).collect();
-        m.gather(&all, &ray, 0.0, &mut hits, &mut ivs);
+        m.gather(
+            &all,
+            &ray,
+            0.0,
+            &mut OriginCache::default(),
+            &mut hits,
+            &mut ivs,
+        );
         assert!(hits.len() > MAX_ACTIVE);
         let sigma = m.density(&hits, 5.0);
         assert!(
             sigma.is_finite() && sigma > 0.5 * m.params.sigma,
             "σ_t = {sigma}"
         );
+    }
+
+    #[test]
+    fn origin_cache_gives_each_rays_own_bits() {
+        use glam::{DQuat, DVec3};
+        let blobs: Vec<Blob> = (0..9)
+            .map(|i| Blob {
+                center: DVec3::new(0.1 * i as f64, -0.07 * (i % 4) as f64, 0.2 * i as f64),
+                rotation: DQuat::from_rotation_x(0.4 * i as f64),
+                semi_axes: DVec3::new(0.5, 0.35, 0.25),
+                a: 1.0,
+                b: 2.0,
+            })
+            .collect();
+        let m = BlobMedium::new(&tiny_settings(4.0), &blobs);
+        let all: Vec<u32> = (0..m.len() as u32).collect();
+        let eye = Vec3A::new(0.1, 0.0, -3.0);
+        let ray = |origin: Vec3A, k: f32| Ray {
+            origin,
+            dir: Vec3A::new(0.02 * k, 0.01 * k, 1.0).normalize(),
+        };
+        let gather = |cache: &mut OriginCache, r: &Ray| {
+            let (mut hits, mut ivs) = (Vec::new(), Vec::new());
+            m.gather(&all, r, 0.0, cache, &mut hits, &mut ivs);
+            format!("{hits:?} {ivs:?}")
+        };
+        // A cache filled by the tile's first ray, reused by the next rays from the same eye and
+        // bypassed by a ray from elsewhere: each gives what a fresh gather gives.
+        let mut cache = OriginCache::default();
+        for (origin, k) in [(eye, 0.0), (eye, 3.0), (eye + Vec3A::X, 1.0), (eye, -2.0)] {
+            let r = ray(origin, k);
+            let alone = gather(&mut OriginCache::default(), &r);
+            assert!(alone.contains("Hit"), "the ray should cross blobs");
+            assert_eq!(gather(&mut cache, &r), alone);
+        }
+        assert_eq!(cache.origin, Some(eye));
     }
 
     #[test]
