@@ -501,7 +501,7 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     for (part, c) in [("light grid", light), ("march", march)] {
         let samples = c[0] + c[1];
         println!(
-            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing",
+            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing in the billows' band, {:.2} M fine samples beyond their reach, {:.2} M coarse samples",
             m(samples),
             c[2] as f64 / samples.max(1) as f64,
             c[3] as f64 / samples.max(1) as f64,
@@ -509,6 +509,8 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
             m(c[6]),
             m(c[5]),
             m(c[7]),
+            m(c[8]),
+            m(c[9]),
         );
     }
 }

@@ -27,10 +27,16 @@ pub enum Counter {
     NoiseOctaves,
     /// March samples inside the medium's shape (fine steps) that found no extinction.
     EmptyFine,
+    /// Fine march samples beyond the billows' reach (no noise evaluated): the re-march from the
+    /// last empty sample after a coarse one found the cloud, and the tail after leaving it.
+    FineOutside,
+    /// Coarse march samples (through the blob supports' empty parts, and the one that finds
+    /// the cloud and is discarded for the re-march).
+    CoarseSamples,
 }
 
 /// Number of [`Counter`]s.
-pub const COUNTERS: usize = 8;
+pub const COUNTERS: usize = 10;
 
 /// Names in [`Counter`] order.
 pub const NAMES: [&str; COUNTERS] = [
@@ -42,6 +48,8 @@ pub const NAMES: [&str; COUNTERS] = [
     "shaded samples",
     "noise octaves",
     "empty fine samples",
+    "fine samples beyond the billows",
+    "coarse samples",
 ];
 
 #[cfg(feature = "counters")]

@@ -395,6 +395,13 @@ pub(super) fn march<
             let t = s + jitter * len;
             let x = ray.at(t);
             let (sigma, inside) = medium.sample(scratch, t, x);
+            if counters::ENABLED {
+                if !in_medium {
+                    counters::add(Counter::CoarseSamples, 1);
+                } else if !inside {
+                    counters::add(Counter::FineOutside, 1);
+                }
+            }
             if !inside {
                 last_empty = t;
                 s += len;
