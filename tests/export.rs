@@ -3,6 +3,7 @@
 //! Mitsuba `.vol` layout, and the grid against the renderer's density.
 
 mod exr_support;
+mod temp_support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -14,13 +15,11 @@ use nephele::render::camera::Frustum;
 use nephele::render::{
     BlobMedium, Camera, CloudMaterial, Medium, Quality, RenderSettings, Sky, Sun,
 };
+use temp_support::TempDir;
 
 /// A fresh temporary folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nephele-export-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(name: &str) -> TempDir {
+    temp_support::temp_dir(&format!("export-{name}"))
 }
 
 /// A small cloud away from the origin (so the translation matters): a body and a head of
@@ -299,12 +298,12 @@ fn vol_holds_the_grid_densely() {
 }
 
 /// A scene folder holding `model.ron` (the test cloud) and `shot.ron` with `extra` fields.
-fn cloud_scene(test: &str, extra: &str) -> (PathBuf, PathBuf) {
+fn cloud_scene(test: &str, extra: &str) -> (TempDir, PathBuf) {
     cloud_scene_with(test, "Diffusion(())", 8, extra)
 }
 
 /// [`cloud_scene`] with the given `animation` at `fps` frames per second.
-fn cloud_scene_with(test: &str, animation: &str, fps: u32, extra: &str) -> (PathBuf, PathBuf) {
+fn cloud_scene_with(test: &str, animation: &str, fps: u32, extra: &str) -> (TempDir, PathBuf) {
     use nephele::blobby::{BlobModel, save_model};
     let dir = temp_dir(test);
     let blobs = cloud();

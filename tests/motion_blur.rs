@@ -2,6 +2,8 @@
 //! cloud through an open shutter, a frame that holds in one part and moves in another, and bad
 //! shutters in a scene file.
 
+mod temp_support;
+
 use glam::{DQuat, DVec3, Vec3};
 use nephele::blobby::Blob;
 use nephele::render::motion_blur::strata;
@@ -215,9 +217,7 @@ fn blur_changes_the_frame_where_the_cloud_moves_and_not_where_it_holds() {
 fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
     use nephele::blobby::{BlobModel, save_model};
     use nephele::scene::{self, RenderOptions, SceneError, Shot};
-    let dir = std::env::temp_dir().join(format!("nephele-blur-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_support::temp_dir("blur");
     let blobs = cloud(DVec3::ZERO);
     let model = BlobModel::from_blobs("test:cloud", 1.0, 1, blobs);
     save_model(&dir.join("model.ron"), &model).unwrap();

@@ -2,6 +2,8 @@
 //! `nephele render` command's exit status; rendering (pinned frame hashes, resume) once the
 //! renderer is in.
 
+mod temp_support;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -12,13 +14,11 @@ use nephele::blobby::{Blob, BlobModel, SourceInfo, save_model};
 use nephele::decompose::Primitive;
 use nephele::geometry::Aabb;
 use nephele::scene::{self, CameraSpec, SceneError, Target};
+use temp_support::TempDir;
 
 /// A fresh temporary folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nephele-scene-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(name: &str) -> TempDir {
+    temp_support::temp_dir(&format!("scene-{name}"))
 }
 
 /// A small "snowman" model: three stacked spheres plus a ring of small blobs.
@@ -61,7 +61,7 @@ fn small_model() -> BlobModel {
 }
 
 /// A folder with `model.ron` and a scene file `name` holding `text`.
-fn scene_dir(test: &str, name: &str, text: &str) -> (PathBuf, PathBuf) {
+fn scene_dir(test: &str, name: &str, text: &str) -> (TempDir, PathBuf) {
     let dir = temp_dir(test);
     save_model(&dir.join("model.ron"), &small_model()).unwrap();
     let path = dir.join(name);
@@ -327,7 +327,7 @@ fn shipped_scenes_load() {
 // renderer's look changes them (update them then, after looking at the frames). ----
 
 /// A tiny shot of the small model with the given animation.
-fn tiny_scene(test: &str, animation: &str) -> (PathBuf, PathBuf) {
+fn tiny_scene(test: &str, animation: &str) -> (TempDir, PathBuf) {
     scene_dir(
         test,
         "tiny.ron",
@@ -358,7 +358,7 @@ fn frame_hash(f: &nephele::render::Frame) -> u64 {
 fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
     let (dir, path) = tiny_scene(test, animation);
     let opts = scene::RenderOptions {
-        output: Some(dir),
+        output: Some(dir.to_path_buf()),
         ..scene::RenderOptions::default()
     };
     let shot = scene::Shot::open(scene::load_scene(&path).unwrap(), &opts).unwrap();
@@ -564,7 +564,7 @@ fn transform_keyframes_and_morph_parse_and_apply() {
     assert!(matches!(s.file.animation, Animation::Morph(_)));
     let (model, _) = scene::load_target(&s, &dir).unwrap();
     let opts = scene::RenderOptions {
-        output: Some(dir),
+        output: Some(dir.to_path_buf()),
         ..scene::RenderOptions::default()
     };
     let shot = scene::Shot::open(s, &opts).unwrap();
