@@ -25,16 +25,21 @@ pub fn write_vol(path: &Path, grid: &DensityGrid) -> std::io::Result<()> {
 /// Voxels of the dense box a `.vol` file of `grid` holds (its active voxels' bounding box; at
 /// most [`MAX_VOL_VOXELS`] can be written).
 pub fn vol_voxels(grid: &DensityGrid) -> u64 {
+    vol_box(grid).1.iter().map(|&d| d as u64).product()
+}
+
+/// The dense box a `.vol` file of `grid` holds: its first voxel's index and its size.
+fn vol_box(grid: &DensityGrid) -> ([i32; 3], [usize; 3]) {
     let (lo, hi) = grid.active_index_bounds().unwrap_or(([0; 3], [0; 3]));
-    (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product()
+    (lo, std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize))
 }
 
 /// The `.vol` file's bytes (see the module doc); an error when the dense box is larger than
 /// [`MAX_VOL_VOXELS`].
 pub fn encode_vol(grid: &DensityGrid) -> std::io::Result<Vec<u8>> {
-    let (lo, hi) = grid.active_index_bounds().unwrap_or(([0; 3], [0; 3]));
-    let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
-    let count = vol_voxels(grid);
+    let (lo, dims) = vol_box(grid);
+    let hi: [i32; 3] = std::array::from_fn(|a| lo[a] + dims[a] as i32 - 1);
+    let count = dims.iter().map(|&d| d as u64).product::<u64>();
     if count > MAX_VOL_VOXELS {
         return Err(std::io::Error::other(format!(
             "the cloud's box is {}×{}×{} voxels, more than a .vol file's {MAX_VOL_VOXELS}; \

@@ -335,19 +335,21 @@ impl BlobMedium {
         Some((lo, hi))
     }
 
-    /// Blob `i`'s unit-support and noise coordinates of the point `x` (world) at time offset
-    /// `dt` from the medium's time (`moving`: the blobs have velocities and `dt ≠ 0`).
+    /// The point `x` (world) relative to blob `i`'s centre at time offset `dt` from the
+    /// medium's time (`moving`: the blobs have velocities and `dt ≠ 0`).
     #[inline]
-    fn coordinates(&self, i: usize, x: Vec3A, dt: f32, moving: bool) -> (Vec3A, Vec3A) {
-        let rel = if moving {
+    fn relative(&self, i: usize, x: Vec3A, dt: f32, moving: bool) -> Vec3A {
+        if moving {
             x - (self.center[i] + self.velocity[i] * dt)
         } else {
             x - self.center[i]
-        };
-        (
-            self.unit_from_world[i] * rel,
-            self.noise_from_world[i] * rel + self.noise_offset[i],
-        )
+        }
+    }
+
+    /// Blob `i`'s noise coordinates of a point at `rel` from its centre.
+    #[inline]
+    fn noise_at(&self, i: usize, rel: Vec3A) -> Vec3A {
+        self.noise_from_world[i] * rel + self.noise_offset[i]
     }
 
     /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
@@ -370,27 +372,22 @@ impl BlobMedium {
             origin.unit.clear();
             origin.noise.clear();
             for &i in candidates {
-                let (o, no) = self.coordinates(i as usize, ray.origin, 0.0, false);
-                origin.unit.push(o);
-                origin.noise.push(no);
+                let i = i as usize;
+                let rel = self.relative(i, ray.origin, 0.0, false);
+                origin.unit.push(self.unit_from_world[i] * rel);
+                origin.noise.push(self.noise_at(i, rel));
             }
         }
         let cached = !moving && origin.origin == Some(ray.origin);
         for (j, &i) in candidates.iter().enumerate() {
             let i = i as usize;
             let m = self.unit_from_world[i];
-            let o = if cached {
-                origin.unit[j]
-            } else {
-                self.coordinates(i, ray.origin, dt, moving).0
-            };
+            // `None`: the cache holds this origin's coordinates.
+            let rel = (!cached).then(|| self.relative(i, ray.origin, dt, moving));
+            let o = rel.map_or_else(|| origin.unit[j], |rel| m * rel);
             let d = m * ray.dir;
             if let Some((t0, t1)) = ray_ellipsoid(o, d) {
-                let no = if cached {
-                    origin.noise[j]
-                } else {
-                    self.coordinates(i, ray.origin, dt, moving).1
-                };
+                let no = rel.map_or_else(|| origin.noise[j], |rel| self.noise_at(i, rel));
                 hits.push(Hit {
                     blob: self.index[i],
                     t0,
