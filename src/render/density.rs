@@ -37,7 +37,7 @@
 
 use glam::Vec3A;
 
-use super::noise::{Billows, CREASE};
+use super::noise::{Billows, CREASE, MAX_OCTAVES};
 
 /// Most blobs whose weights enter the noise blend at one sample; the strongest are kept (the
 /// field still sums all).
@@ -86,62 +86,88 @@ pub(super) struct DensityParams {
 
 impl DensityParams {
     /// `σ_t` at signed depth `d` below the iso-surface of a part of feature size `feature`;
-    /// `displacement(depths, n)` (world units, in the bounds [`Billows::total_depth`] gives) is
-    /// called only when it can change the result. Returns `(σ_t, may_hold_density)`: the flag
-    /// is false only where no billow can reach (so a coarse march may skip on).
-    #[inline]
+    /// `displacement(depths, n, settle)` (world units, in the bounds [`Billows::total_depth`]
+    /// gives) is called only when it can change the result, and may end early with
+    /// [`Settle::check`]'s answer. Returns `(σ_t, may_hold_density)`: the flag is false only
+    /// where no billow can reach (so a coarse march may skip on).
     ///
     /// `reach` is how far the supports extend from this point (world units): outward pushes are
     /// softly limited to it, `D·r/(D + r)`, so a billow top rounds off before the support ends
     /// instead of being cut flat by it (a blob with a small `A` has a thin shell).
+    #[inline]
     fn extinction(
         &self,
         d: f32,
         feature: f32,
         reach: f32,
-        displacement: impl FnOnce(
-            &[f32; super::noise::MAX_OCTAVES],
-            usize,
-            &dyn Fn(f32, f32) -> Option<f32>,
-        ) -> Result<f32, f32>,
+        displacement: impl FnOnce(&[f32; MAX_OCTAVES], usize, &Settle) -> Result<f32, f32>,
     ) -> (f32, bool) {
-        let (depths, n) = self.billows.depths(feature);
-        let total: f32 = depths[..n].iter().sum();
+        let (depths, n, total) = self.billows.depths(feature);
         if d + ((1.0 - CREASE) * total).min(reach) <= 0.0 {
             return (0.0, false);
         }
         if d - CREASE * total >= self.edge {
             return (self.sigma, true);
         }
-        let (lo_total, hi_total) = (-CREASE * total, (1.0 - CREASE) * total);
-        let cut = MAX_CUT * feature;
-        // The surface's lift for a raw displacement: clamped to its bounds, then softly
-        // limited (monotonic, so bounds of `push` give bounds of the lift).
-        let lift = |push: f32| {
-            let push = push.clamp(lo_total, hi_total);
-            if push > 0.0 {
-                push * reach / (push + reach).max(1e-30)
-            } else {
-                // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
-                push * cut / (cut - push).max(1e-30)
-            }
-        };
         if n == 0 {
             return (self.sigma * ramp(d, self.edge), true);
         }
-        // Once the octaves left cannot move the ramp off a clamp, the answer is exact.
-        let settled = |lo: f32, hi: f32| {
-            if d + lift(hi) <= 0.0 {
-                Some(0.0)
-            } else if d + lift(lo) >= self.edge {
-                Some(self.sigma)
-            } else {
-                None
-            }
+        let settle = Settle {
+            d,
+            edge: self.edge,
+            sigma: self.sigma,
+            lo_total: -CREASE * total,
+            hi_total: (1.0 - CREASE) * total,
+            reach,
+            cut: MAX_CUT * feature,
         };
-        match displacement(&depths, n, &settled) {
-            Ok(push) => (self.sigma * ramp(d + lift(push), self.edge), true),
+        match displacement(&depths, n, &settle) {
+            Ok(push) => (self.sigma * ramp(d + settle.lift(push), self.edge), true),
             Err(sigma) => (sigma, true),
+        }
+    }
+}
+
+/// What decides a sample's density once its displacement is known to lie in a range: the
+/// depth, the ramp and the lift's limits ([`DensityParams::extinction`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Settle {
+    d: f32,
+    edge: f32,
+    sigma: f32,
+    lo_total: f32,
+    hi_total: f32,
+    reach: f32,
+    cut: f32,
+}
+
+impl Settle {
+    /// The surface's lift for a raw displacement: clamped to its bounds, then softly limited
+    /// (monotonic, so bounds of `push` give bounds of the lift).
+    #[inline]
+    fn lift(&self, push: f32) -> f32 {
+        let push = push.clamp(self.lo_total, self.hi_total);
+        if push > 0.0 {
+            push * self.reach / (push + self.reach).max(1e-30)
+        } else {
+            // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
+            push * self.cut / (self.cut - push).max(1e-30)
+        }
+    }
+
+    /// The density once the displacement lies in `[lo, hi]`, if the octaves left cannot move
+    /// the ramp off a clamp (then the answer is exact); `None` otherwise.
+    #[inline]
+    pub(super) fn check(&self, lo: f32, hi: f32) -> Option<f32> {
+        // A lift is ≥ 0 for a push > 0 and ≤ 0 for a push ≤ 0, so the signs alone often
+        // decide (the same answers as the lifts, without their divisions).
+        let empty = !(self.d > 0.0 && hi > 0.0) && self.d + self.lift(hi) <= 0.0;
+        if empty {
+            Some(0.0)
+        } else if !(self.d < self.edge && lo <= 0.0) && self.d + self.lift(lo) >= self.edge {
+            Some(self.sigma)
+        } else {
+            None
         }
     }
 }
@@ -240,7 +266,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
             wsum += w;
         }
     }
-    p.extinction(d, fsum / wsum, reach, |depths, octaves, settled| {
+    p.extinction(d, fsum / wsum, reach, |depths, octaves, settle| {
         let mut points = [Vec3A::ZERO; MAX_ACTIVE];
         let mut weights = [0.0f32; MAX_ACTIVE];
         let (mut m, mut w2) = (0, 0.0);
@@ -264,7 +290,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
             1.0 / w2.sqrt(),
             depths,
             octaves,
-            settled,
+            |lo, hi| settle.check(lo, hi),
         )
     })
 }
@@ -285,10 +311,7 @@ mod tests {
         let total = p.billows.total_depth(f);
         let octave = |k: i32| 0.25 * 0.2 * 2.03f32.powf(-(k as f32) * super::super::noise::HURST);
         assert!((total - (0..4).map(octave).sum::<f32>()).abs() < 1e-5);
-        let never = |_: &[f32; 8],
-                     _: usize,
-                     _: &dyn Fn(f32, f32) -> Option<f32>|
-         -> Result<f32, f32> { unreachable!() };
+        let never = |_: &[f32; 8], _: usize, _: &Settle| -> Result<f32, f32> { unreachable!() };
         // Beyond the highest billow top: nothing, and the march may skip.
         assert_eq!(
             p.extinction(-(1.0 - CREASE) * total - 1e-3, f, 1.0, never),

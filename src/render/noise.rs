@@ -244,12 +244,14 @@ impl Billows {
         self.n
     }
 
-    /// Depth `a·λ_k·s(F/λ_k)` of each octave on a part of feature size `feature`, and the
-    /// number of leading octaves that are non-zero.
+    /// Depth `a·λ_k·s(F/λ_k)` of each octave on a part of feature size `feature`, the
+    /// number of leading octaves that are non-zero, and the depths' sum (in octave order: the
+    /// bits of [`Billows::total_depth`]).
     #[inline]
-    pub fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize) {
+    pub fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize, f32) {
         let mut d = [0.0; MAX_OCTAVES];
         let mut n = 0;
+        let mut total = 0.0;
         let (lo, hi) = FADE_IN;
         for o in 0..self.n {
             let l = self.wavelength[o];
@@ -263,19 +265,19 @@ impl Billows {
                 r * r * (3.0 - 2.0 * r)
             };
             d[o] = self.depth[o] * s;
+            total += d[o];
             if s > 0.0 {
                 n = o + 1;
             }
         }
-        (d, n)
+        (d, n, total)
     }
 
     /// Total depth `Σ_k a·λ_k·s(F/λ_k)`: the displacement lies in
     /// `[−CREASE·total, (1 − CREASE)·total]`.
     #[inline]
     pub fn total_depth(&self, feature: f32) -> f32 {
-        let (d, n) = self.depths(feature);
-        d[..n].iter().sum()
+        self.depths(feature).2
     }
 
     /// The blend `Σ_j w_j D(p_j) / √(Σ_j w_j²)` of several blobs' displacements (`norm` =
@@ -346,7 +348,7 @@ mod tests {
     fn noise_is_zero_on_lattice_and_billows_are_bounded_and_varied() {
         assert_eq!(gradient_noise(Vec3A::new(3.0, -2.0, 7.0)), 0.0);
         let b = Billows::new(4, 1.0, 0.0, 0.25, 0.0);
-        let (depths, n) = b.depths(10.0);
+        let (depths, n, _) = b.depths(10.0);
         assert_eq!(n, 4);
         let total = b.total_depth(10.0);
         let (mut lo, mut hi, mut sum, mut sq) = (f32::MAX, f32::MIN, 0.0f64, 0.0f64);
@@ -382,7 +384,7 @@ mod tests {
         // A part just below FADE_IN.0 of octave 1's wavelength gets neither octave 0 nor 1,
         // part of octave 2, and depths in proportion to wavelength^HURST where full.
         let f = 0.99 * FADE_IN.0 * 0.2 / LACUNARITY;
-        let (d, n) = b.depths(f);
+        let (d, n, _) = b.depths(f);
         assert_eq!(d[0], 0.0);
         assert_eq!(d[1], 0.0);
         assert!(d[2] > 0.0 && d[2] < b.depth[2]);
@@ -400,7 +402,8 @@ mod tests {
         let (lo, hi) = FADE_IN;
         for k in 0..100_000 {
             let feature = 1e-4 * 1.0002f32.powi(k);
-            let (d, n) = b.depths(feature);
+            let (d, n, total) = b.depths(feature);
+            assert_eq!(total.to_bits(), d[..n].iter().sum::<f32>().to_bits());
             let mut last = 0;
             for o in 0..b.octaves() {
                 let l = b.wavelength[o];
@@ -422,7 +425,7 @@ mod tests {
                     f = f.next_down();
                 }
                 for _ in 0..128 {
-                    let (d, _) = b.depths(f);
+                    let (d, _, _) = b.depths(f);
                     let l = b.wavelength[o];
                     let r = ((f / l - lo) / (hi - lo)).clamp(0.0, 1.0);
                     let s = r * r * (3.0 - 2.0 * r);
@@ -438,7 +441,7 @@ mod tests {
         let p = Vec3A::new(1.234, 5.678, -9.1);
         let e = Vec3A::splat(1e-4);
         let b = |phase| Billows::new(3, 1.0, 0.0, 0.25, phase);
-        let (d, n) = b(0.0).depths(10.0);
+        let (d, n, _) = b(0.0).depths(10.0);
         let v = b(0.0).displacement(p, &d, n);
         assert!((v - b(0.0).displacement(p + e, &d, n)).abs() < 1e-2);
         assert!((v - b(1e-4).displacement(p, &d, n)).abs() < 1e-2);
