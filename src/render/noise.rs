@@ -251,7 +251,8 @@ impl Billows {
     pub fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize, f32) {
         let mut d = [0.0; MAX_OCTAVES];
         let mut n = 0;
-        let mut total = 0.0;
+        // From −0.0, as `Sum` folds: the bits of `d[..n].iter().sum()` also for `n = 0`.
+        let mut total = -0.0f32;
         let (lo, hi) = FADE_IN;
         for o in 0..self.n {
             let l = self.wavelength[o];
@@ -265,9 +266,11 @@ impl Billows {
                 r * r * (3.0 - 2.0 * r)
             };
             d[o] = self.depth[o] * s;
-            total += d[o];
             if s > 0.0 {
                 n = o + 1;
+                // The absent octaves are the coarse ones (a prefix): skipping their zeros
+                // gives the same bits.
+                total += d[o];
             }
         }
         (d, n, total)

@@ -31,6 +31,7 @@ use std::io::Cursor;
 use std::path::Path;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::camera::CameraRays;
 use super::color::ColorSpace;
@@ -341,19 +342,29 @@ pub fn write_png(path: &Path, frame: &Frame, settings: &RenderSettings) -> std::
     crate::atomic::write_bytes_atomically(path, bytes.get_ref())
 }
 
-/// The frame over the sky, exposed, tone-mapped and sRGB-encoded (what [`write_png`] writes).
+/// The frame over the sky, exposed, tone-mapped and sRGB-encoded (what [`write_png`] writes);
+/// rows in parallel (the sky's radiance and the curves per pixel had been 0.09 s of a 1080p
+/// frame's PNG on one core).
 pub fn tonemapped(frame: &Frame, settings: &RenderSettings) -> image::RgbImage {
     let cam = CameraRays::new(&settings.camera, frame.width, frame.height);
     let gain = settings.exposure.exp2();
     let dome = super::sky::SkyDome::new(&settings.sky, &settings.sun);
-    image::RgbImage::from_fn(frame.width, frame.height, |x, y| {
-        let i = (y * frame.width + x) as usize;
-        let dir = Vec3::from(cam.pixel_ray(x, y).dir);
-        let sky = dome.radiance(dir);
-        let c = (Vec3::from(frame.rgb[i]) + sky * (1.0 - frame.alpha[i])) * gain;
-        let m = |v: f32| (srgb_encode(aces(v)) * 255.0 + 0.5) as u8;
-        image::Rgb([m(c.x), m(c.y), m(c.z)])
-    })
+    let w = frame.width as usize;
+    let mut bytes = vec![0u8; 3 * w * frame.height as usize];
+    bytes
+        .par_chunks_mut(3 * w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                let i = y * w + x;
+                let dir = Vec3::from(cam.pixel_ray(x as u32, y as u32).dir);
+                let sky = dome.radiance(dir);
+                let c = (Vec3::from(frame.rgb[i]) + sky * (1.0 - frame.alpha[i])) * gain;
+                let m = |v: f32| (srgb_encode(aces(v)) * 255.0 + 0.5) as u8;
+                px.copy_from_slice(&[m(c.x), m(c.y), m(c.z)]);
+            }
+        });
+    image::RgbImage::from_raw(frame.width, frame.height, bytes).expect("3 bytes a pixel")
 }
 
 /// ACES filmic tone curve (Narkowicz 2015 fit), `[0, ∞) → [0, 1]`.
