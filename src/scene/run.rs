@@ -126,11 +126,12 @@ impl Shot {
                         let (image, settings, blobs) =
                             (image.clone(), settings.clone(), blobs.clone());
                         writing = Some(scope.spawn(move || {
-                            write_files(self, frame, &image, &settings, &blobs, (voxel, hash))
+                            let out = (voxel, hash, false);
+                            write_files(self, frame, &image, &settings, &blobs, out)
                         }));
                     } else {
                         // The last frame: nothing to overlap with, so no copy of it.
-                        write_files(self, frame, image, &settings, &blobs, (voxel, hash))?;
+                        write_files(self, frame, image, &settings, &blobs, (voxel, hash, true))?;
                     }
                 }
                 let written_last = Instant::now();
@@ -211,15 +212,16 @@ impl Shot {
     }
 }
 
-/// Write frame `frame`'s files ([`files::write_frame`]) with the grids' voxel size and the
-/// frame's provenance hash.
+/// Write frame `frame`'s files ([`files::write_frame`]) with the grids' voxel size, the
+/// frame's provenance hash and whether to write its formats in parallel (not while the next
+/// frame renders beside it: they would only take its cores).
 fn write_files(
     shot: &Shot,
     frame: u32,
     image: &crate::render::Frame,
     settings: &crate::render::RenderSettings,
     blobs: &[crate::blobby::Blob],
-    (voxel, hash): (f64, u64),
+    (voxel, hash, parallel): (f64, u64, bool),
 ) -> Result<(), SceneError> {
     let out = files::FrameOutput {
         image,
@@ -228,7 +230,7 @@ fn write_files(
         voxel,
         hash,
     };
-    files::write_frame(shot, frame, &out)
+    files::write_frame(shot, frame, &out, parallel)
 }
 
 /// The thread writing a frame's files.
