@@ -52,6 +52,13 @@ pub struct BlobScratch {
     dt: f32,
     /// The hits spanning the last sampled `t`, in `hits`' order (see [`ActiveHits`]).
     active: ActiveHits,
+    /// What the gather keeps between rays (see [`GatherBuffers`]).
+    gather: GatherBuffers,
+}
+
+/// What [`BlobMedium::gather`] keeps between a thread's rays.
+#[derive(Debug, Default)]
+struct GatherBuffers {
     /// The tile's candidates' coordinates of one ray origin (see [`OriginCache`]).
     origin: OriginCache,
     /// The buffers that sort a ray's hits (see [`HitSort`]).
@@ -386,23 +393,21 @@ impl BlobMedium {
     }
 
     /// Gather the blobs of `candidates` crossed by `ray` into `hits` (sorted by entry) and their
-    /// merged spans into `intervals`; `origin` caches the candidates' coordinates of a ray
-    /// origin (filled by the tile's first ray; the same bits as computing them per ray), `sort`
-    /// sorts them.
-    #[allow(clippy::too_many_arguments)]
+    /// merged spans into `intervals`; `buffers.origin` caches the candidates' coordinates of a
+    /// ray origin (filled by the tile's first ray; the same bits as computing them per ray).
     fn gather(
         &self,
         candidates: &[u32],
         ray: &Ray,
         dt: f32,
-        origin: &mut OriginCache,
-        sort: &mut HitSort,
+        buffers: &mut GatherBuffers,
         hits: &mut Vec<Hit>,
         ivs: &mut Vec<[f32; 2]>,
     ) {
         hits.clear();
         ivs.clear();
         let moving = dt != 0.0 && !self.velocity.is_empty();
+        let GatherBuffers { origin, sort } = buffers;
         if !moving && origin.origin.is_none() {
             origin.origin = Some(ray.origin);
             origin.unit.clear();
@@ -507,7 +512,7 @@ impl Medium for BlobMedium {
 
     fn begin_tile(&self, frustum: &Frustum, s: &mut BlobScratch) {
         s.tile.clear();
-        s.origin.origin = None;
+        s.gather.origin.origin = None;
         if self.velocity.is_empty() || self.sweep == 0.0 {
             s.tile.extend((0..self.len() as u32).filter(|&i| {
                 frustum.may_contain_ball(self.center[i as usize], self.radius[i as usize])
@@ -529,10 +534,9 @@ impl Medium for BlobMedium {
             intervals,
             active,
             dt,
-            origin,
-            sort,
+            gather,
         } = s;
-        self.gather(tile, ray, *dt, origin, sort, hits, intervals);
+        self.gather(tile, ray, *dt, gather, hits, intervals);
         active.reset();
     }
 
@@ -707,8 +711,7 @@ mod tests {
             &all,
             &ray,
             0.0,
-            &mut OriginCache::default(),
-            &mut HitSort::default(),
+            &mut GatherBuffers::default(),
             &mut hits,
             &mut ivs,
         );
@@ -739,29 +742,21 @@ mod tests {
             origin,
             dir: Vec3A::new(0.02 * k, 0.01 * k, 1.0).normalize(),
         };
-        let gather = |cache: &mut OriginCache, r: &Ray| {
+        let gather = |buffers: &mut GatherBuffers, r: &Ray| {
             let (mut hits, mut ivs) = (Vec::new(), Vec::new());
-            m.gather(
-                &all,
-                r,
-                0.0,
-                cache,
-                &mut HitSort::default(),
-                &mut hits,
-                &mut ivs,
-            );
+            m.gather(&all, r, 0.0, buffers, &mut hits, &mut ivs);
             format!("{hits:?} {ivs:?}")
         };
         // A cache filled by the tile's first ray, reused by the next rays from the same eye and
         // bypassed by a ray from elsewhere: each gives what a fresh gather gives.
-        let mut cache = OriginCache::default();
+        let mut cache = GatherBuffers::default();
         for (origin, k) in [(eye, 0.0), (eye, 3.0), (eye + Vec3A::X, 1.0), (eye, -2.0)] {
             let r = ray(origin, k);
-            let alone = gather(&mut OriginCache::default(), &r);
+            let alone = gather(&mut GatherBuffers::default(), &r);
             assert!(alone.contains("Hit"), "the ray should cross blobs");
             assert_eq!(gather(&mut cache, &r), alone);
         }
-        assert_eq!(cache.origin, Some(eye));
+        assert_eq!(cache.origin.origin, Some(eye));
     }
 
     #[test]
