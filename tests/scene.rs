@@ -368,8 +368,8 @@ fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
 #[test]
 fn seeded_frames_have_pinned_hashes() {
     for (name, anim, pinned) in [
-        ("hash-agg", "Aggregation(())", 908971857565158056u64),
-        ("hash-dif", "Diffusion(())", 5876841534854308759u64),
+        ("hash-agg", "Aggregation(())", 18333557314761046391u64),
+        ("hash-dif", "Diffusion(())", 1578149716691403766u64),
     ] {
         let a = render_tiny(name, anim, 4);
         let b = render_tiny(name, anim, 4);

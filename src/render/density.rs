@@ -32,8 +32,11 @@
 //! anchored to the blob: the texture moves and turns with it, and does not stretch as the blob
 //! grows) and `o_i` a seeded offset drawn for the blob's index. The weights are continuous in
 //! `x` and keep only the dominant blobs, so a sample evaluates one to three billow stacks, and
-//! only in the band `−D⁺ < d < D⁻ + W` that the bounds of `D` leave undecided: deeper inside the
-//! density is `σ`, further out 0.
+//! only in the band `−lift(D⁺) < d < W − lift(D⁻)` that the bounds of `D` leave undecided:
+//! deeper inside the density is `σ`, further out 0 (and the march may step on coarsely). The
+//! band is bounded by the lifts of the largest push and the deepest crease, not by `D⁺`, `D⁻`
+//! themselves: where the supports end close to the surface, the soft limit keeps a billow top
+//! well short of the push it was given, and the march need not look for one further out.
 
 use glam::Vec3A;
 
@@ -103,15 +106,6 @@ impl DensityParams {
         displacement: impl FnOnce(&[f32; MAX_OCTAVES], usize, &Settle) -> Result<f32, f32>,
     ) -> (f32, bool) {
         let (depths, n, total) = self.billows.depths(feature);
-        if d + ((1.0 - CREASE) * total).min(reach) <= 0.0 {
-            return (0.0, false);
-        }
-        if d - CREASE * total >= self.edge {
-            return (self.sigma, true);
-        }
-        if n == 0 {
-            return (self.sigma * ramp(d, self.edge), true);
-        }
         let settle = Settle {
             d,
             edge: self.edge,
@@ -121,6 +115,17 @@ impl DensityParams {
             reach,
             cut: MAX_CUT * feature,
         };
+        // The lifts of the largest push and the deepest crease bound every lift (the soft
+        // limits are increasing): beyond them no billow can reach, and below them no crease.
+        if d + settle.lift(settle.hi_total) <= 0.0 {
+            return (0.0, false);
+        }
+        if d + settle.lift(settle.lo_total) >= self.edge {
+            return (self.sigma, true);
+        }
+        if n == 0 {
+            return (self.sigma * ramp(d, self.edge), true);
+        }
         match displacement(&depths, n, &settle) {
             Ok(push) => (self.sigma * ramp(d + settle.lift(push), self.edge), true),
             Err(sigma) => (sigma, true),
@@ -148,7 +153,7 @@ impl Settle {
     fn lift(&self, push: f32) -> f32 {
         let push = push.clamp(self.lo_total, self.hi_total);
         if push > 0.0 {
-            push * self.reach / (push + self.reach).max(1e-30)
+            soft_limit(push, self.reach)
         } else {
             // Creases cut at most about `MAX_CUT·F` deep: a thin part keeps its width.
             push * self.cut / (self.cut - push).max(1e-30)
@@ -170,6 +175,13 @@ impl Settle {
             None
         }
     }
+}
+
+/// An outward push `push ≥ 0` softly limited to `reach`: `push·reach/(push + reach)`, below
+/// both and increasing in `push` — so the lift of the largest push bounds every lift.
+#[inline]
+fn soft_limit(push: f32, reach: f32) -> f32 {
+    push * reach / (push + reach).max(1e-30)
 }
 
 /// The edge's density profile: `clamp(v / w, 0, 1)`, linear from the surface (`v = 0`) to full
@@ -252,7 +264,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
     // answer is [`DensityParams::extinction`]'s first two (the bound is monotone in every
     // rounding): no feature size, no octave depths needed.
     let most = p.billows.max_total();
-    if d + ((1.0 - CREASE) * most).min(reach) <= 0.0 {
+    if d + soft_limit((1.0 - CREASE) * most, reach) <= 0.0 {
         return (0.0, false);
     }
     if d - CREASE * most >= p.edge {
@@ -332,12 +344,31 @@ mod tests {
         assert!(inside && (s - 5.0).abs() < 1e-3, "{s}");
         // Near the end of the supports a billow top is rounded off: a push of 0.02 where the
         // supports reach 0.02 further lifts the surface by 0.01 only.
-        assert_eq!(
-            p.extinction(-0.015, f, 0.02, |_, _, _| Ok(0.02)),
-            (0.0, true)
-        );
         let (s, _) = p.extinction(-0.005, f, 0.02, |_, _, _| Ok(0.02));
         assert!((s - 5.0).abs() < 1e-3, "{s}");
+        // So no billow reaches further than the lift of the largest push, `h·r/(h + r)` with
+        // `h = (1 − CREASE)·total` (0.0119 here, not min(h, r) = 0.02): decided without
+        // octaves, and the march may skip ...
+        let top = (1.0 - CREASE) * total * 0.02 / ((1.0 - CREASE) * total + 0.02);
+        assert!((top - 0.0119).abs() < 1e-4, "{top}");
+        assert_eq!(p.extinction(-top - 1e-4, f, 0.02, never), (0.0, false));
+        // ... while just inside it the octaves decide.
+        assert_eq!(
+            p.extinction(-top + 1e-4, f, 0.02, |_, _, _| Ok(0.0)),
+            (0.0, true)
+        );
+        // Likewise no crease cuts deeper than the lift of the deepest, `c·m/(c + m)` with
+        // `c = CREASE·total` and `m = MAX_CUT·F` (0.0573 here, not c = 0.0685): full density
+        // below it plus the edge, without octaves.
+        let (c, m) = (CREASE * total, MAX_CUT * f);
+        let deepest = c * m / (c + m);
+        assert!((deepest - 0.0573).abs() < 1e-4, "{deepest}");
+        assert_eq!(
+            p.extinction(deepest + 0.01 + 1e-4, f, 1.0, never),
+            (10.0, true)
+        );
+        let (s, _) = p.extinction(deepest + 0.01 - 1e-3, f, 1.0, |_, _, _| Ok(-1.0));
+        assert!(s < 10.0, "{s}");
         // And no density can lie beyond the reach.
         assert_eq!(p.extinction(-0.031, f, 0.03, never), (0.0, false));
         // A part smaller than the finest wavelength gets no billows: the plain edge ramp.
