@@ -260,9 +260,9 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
     // `1 − |q|²`, so this stays a fair distance deep inside a strong blob, where `(g − 1)/|∇g|`
     // saturates near a fifth of its radius and the creases would hollow it out.
     let d = 2.0 * (g - g.sqrt()) / (4.0 * grad.length() * p.inv_threshold).max(1e-30);
-    // Beyond the reach or below the depth of the deepest billows any part could have, the
-    // answer is [`DensityParams::extinction`]'s first two (the bound is monotone in every
-    // rounding): no feature size, no octave depths needed.
+    // Beyond the lift of the highest billow top or below the deepest crease any part could
+    // have, the answer is [`DensityParams::extinction`]'s first two (its bounds, from the
+    // part's own total ≤ `most`, are no wider): no feature size, no octave depths needed.
     let most = p.billows.max_total();
     if d + soft_limit((1.0 - CREASE) * most, reach) <= 0.0 {
         return (0.0, false);
