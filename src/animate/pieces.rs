@@ -49,7 +49,7 @@ pub(crate) fn keep_in_one_piece(blobs: &mut [Blob], members: &[usize], threshold
     let shown: Vec<usize> = members
         .iter()
         .copied()
-        .filter(|&i| field.value(blobs[i].center) >= 0.0)
+        .filter(|&i| field.is_inside(blobs[i].center))
         .collect();
     let Some(&root) = shown.iter().max_by(|&&a, &&b| {
         let (va, vb) = (

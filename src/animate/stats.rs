@@ -97,7 +97,7 @@ fn sample_inside(field: &BlobField, origin: DVec3, cell: f64, dims: [usize; 3]) 
                 for x in 0..nx {
                     let p =
                         origin + DVec3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * cell;
-                    slab[x + nx * y] = field.value(p) >= 0.0;
+                    slab[x + nx * y] = field.is_inside(p);
                 }
             }
         });

@@ -181,7 +181,9 @@ impl BlobField {
         if !self.bounds.contains(x) {
             return &[];
         }
-        let c = ((x - self.origin) * self.inv_cell).floor();
+        // `x ≥ origin` inside the bounds, so `c ≥ 0` and `as` truncates as `floor` would
+        // (without its library call: baseline x86-64 has no rounding instruction).
+        let c = (x - self.origin) * self.inv_cell;
         let cx = (c.x as usize).min(self.res[0] - 1);
         let cy = (c.y as usize).min(self.res[1] - 1);
         let cz = (c.z as usize).min(self.res[2] - 1);
@@ -202,6 +204,23 @@ impl BlobField {
     #[inline]
     pub fn value(&self, x: DVec3) -> f64 {
         self.sum(x) - self.threshold
+    }
+
+    /// `F(x) ≥ 0`, exactly as `value(x) >= 0.0` answers it, but stopping as soon as the blobs
+    /// summed so far reach the iso-level: every term is ≥ 0, so the rounded partial sums never
+    /// fall (most of a cloud's inside is decided by its first few blobs).
+    #[inline]
+    pub fn is_inside(&self, x: DVec3) -> bool {
+        // The same sum as [`BlobField::sum`]'s (`Sum` for f64 starts from −0.0), in the same
+        // order.
+        let mut sum = -0.0;
+        for &i in self.blobs_near(x) {
+            sum += self.kernels[i as usize].value(x);
+            if sum >= self.threshold {
+                return true;
+            }
+        }
+        sum - self.threshold >= 0.0
     }
 
     /// `F(x)` and `∇F(x)`.
@@ -251,6 +270,27 @@ mod tests {
             let x = DVec3::new((t * 7.0).sin() * 4.0, (t * 5.0).cos() * 3.0, t * 0.2 - 0.5);
             let brute: f64 = blobs.iter().map(|b| b.value(x)).sum::<f64>() - 1.0;
             assert!((field.value(x) - brute).abs() < 1e-12, "at {x}");
+        }
+    }
+
+    #[test]
+    fn is_inside_answers_as_the_full_sum_does() {
+        let blobs = blobs();
+        // Levels from below the weakest blob to above the strongest overlap, and the edge
+        // cases: at 0 everywhere near a blob is inside, at −0.0 and a negative level too.
+        for t in [-0.5, -0.0, 0.0, 0.05, 0.3, 1.0, 2.0, 5.0] {
+            let field = BlobField::new(&blobs, t);
+            let mut inside = 0;
+            for i in 0..20_000 {
+                let u = i as f64 * 0.00131;
+                let x = DVec3::new((u * 7.0).sin() * 4.0, (u * 5.0).cos() * 3.0, u * 0.2 - 0.5);
+                let full = field.value(x) >= 0.0;
+                assert_eq!(field.is_inside(x), full, "level {t} at {x}");
+                inside += full as usize;
+            }
+            if t > 0.0 && t < 5.0 {
+                assert!(inside > 0 && inside < 20_000, "level {t}: {inside} inside");
+            }
         }
     }
 
