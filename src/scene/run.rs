@@ -125,13 +125,29 @@ impl Shot {
                     if n + 1 < frames.len() {
                         let (image, settings, blobs) =
                             (image.clone(), settings.clone(), blobs.clone());
+                        // Written beside the next frame's render: sequentially, or its formats
+                        // would only take the render's cores.
                         writing = Some(scope.spawn(move || {
-                            let out = (voxel, hash, false);
-                            write_files(self, frame, &image, &settings, &blobs, out)
+                            let out = files::FrameOutput {
+                                image: &image,
+                                settings: &settings,
+                                blobs: &blobs,
+                                voxel,
+                                hash,
+                            };
+                            files::write_frame(self, frame, &out, false)
                         }));
                     } else {
-                        // The last frame: nothing to overlap with, so no copy of it.
-                        write_files(self, frame, image, &settings, &blobs, (voxel, hash, true))?;
+                        // The last frame: nothing to overlap with, so no copy of it, and its
+                        // formats in parallel.
+                        let out = files::FrameOutput {
+                            image,
+                            settings: &settings,
+                            blobs: &blobs,
+                            voxel,
+                            hash,
+                        };
+                        files::write_frame(self, frame, &out, true)?;
                     }
                 }
                 let written_last = Instant::now();
@@ -210,27 +226,6 @@ impl Shot {
             })
             .collect()
     }
-}
-
-/// Write frame `frame`'s files ([`files::write_frame`]) with the grids' voxel size, the
-/// frame's provenance hash and whether to write its formats in parallel (not while the next
-/// frame renders beside it: they would only take its cores).
-fn write_files(
-    shot: &Shot,
-    frame: u32,
-    image: &crate::render::Frame,
-    settings: &crate::render::RenderSettings,
-    blobs: &[crate::blobby::Blob],
-    (voxel, hash, parallel): (f64, u64, bool),
-) -> Result<(), SceneError> {
-    let out = files::FrameOutput {
-        image,
-        settings,
-        blobs,
-        voxel,
-        hash,
-    };
-    files::write_frame(shot, frame, &out, parallel)
 }
 
 /// The thread writing a frame's files.
