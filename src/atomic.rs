@@ -70,6 +70,9 @@ pub fn write_atomically(
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         drop(file);
+        if let Some(name) = target.file_name() {
+            crate::test_hook::stop_at(&format!("before-rename:{}", name.to_string_lossy()));
+        }
         std::fs::rename(&tmp, target)
     })();
     if result.is_err() {

@@ -74,10 +74,13 @@ impl FarmJob {
 /// `#SBATCH` line, e.g. `--partition=render`).
 pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     let mut s = slurm_header(job);
-    s.push_str(&format!("#SBATCH --job-name={}-prepare\n", job.name));
+    s.push_str(&format!(
+        "#SBATCH --job-name={}-prepare\n",
+        slurm_job_name(&job.name)
+    ));
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        sbatch_path(&job.logs.join(format!("{}-prepare_%j.log", job.name)))
+        sbatch_path(&job.logs.join(format!("{}-prepare_%j.log", slurm_job_name(&job.name))))
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -93,12 +96,12 @@ pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
 /// `--dependency=afterok:<prepare job id>`.
 pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     let mut s = slurm_header(job);
-    s.push_str(&format!("#SBATCH --job-name={}\n", job.name));
+    s.push_str(&format!("#SBATCH --job-name={}\n", slurm_job_name(&job.name)));
     s.push_str(&format!("#SBATCH --array=0-{}\n", job.tasks - 1));
     s.push_str("#SBATCH --requeue\n#SBATCH --open-mode=append\n");
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        sbatch_path(&job.logs.join(format!("{}_%A_%a.log", job.name)))
+        sbatch_path(&job.logs.join(format!("{}_%A_%a.log", slurm_job_name(&job.name))))
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -145,10 +148,63 @@ fn sbatch_path(p: &Path) -> String {
     }
 }
 
+/// A Slurm job name: the shot's name with every character but ASCII letters, digits, `.`, `_`
+/// and `-` replaced by `_` (nothing in it can end an `#SBATCH` line or start a shell word).
+pub fn slurm_job_name(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() { "nephele".into() } else { s }
+}
+
+/// Check the extra `sbatch` options before they go into a batch script: an option holding a
+/// control character (a newline would end the `#SBATCH` line and start a shell command) or a
+/// double quote (it cannot be quoted on an `#SBATCH` line) is refused, with the reason.
+pub fn check_sbatch_args(sbatch_args: &[String]) -> Result<(), String> {
+    for a in sbatch_args {
+        if let Some(c) = a.chars().find(|c| c.is_control()) {
+            return Err(format!(
+                "--sbatch-arg {a:?}: holds the control character {c:?}; give each sbatch option \
+                 as one line without newlines or tabs"
+            ));
+        }
+        if a.contains('"') {
+            return Err(format!(
+                "--sbatch-arg {a:?}: a double quote cannot be written on an #SBATCH line; \
+                 leave it out (values with spaces are quoted for you)"
+            ));
+        }
+        if !a.starts_with('-') {
+            return Err(format!(
+                "--sbatch-arg {a:?}: not an sbatch option (they start with -, e.g. \
+                 --sbatch-arg=--partition=render)"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The `#SBATCH` lines of the extra options (checked by [`check_sbatch_args`]), each
+/// double-quoted when it holds whitespace (sbatch splits `#SBATCH` lines on whitespace outside
+/// quotes); an option that would not be safe on such a line is left out.
 fn extra_lines(sbatch_args: &[String]) -> String {
     sbatch_args
         .iter()
-        .map(|a| format!("#SBATCH {a}\n"))
+        .filter(|a| check_sbatch_args(std::slice::from_ref(a)).is_ok())
+        .map(|a| {
+            if a.contains(char::is_whitespace) {
+                format!("#SBATCH \"{a}\"\n")
+            } else {
+                format!("#SBATCH {a}\n")
+            }
+        })
         .collect()
 }
 
@@ -166,7 +222,7 @@ pub struct K8sPod {
 
 /// The Kubernetes Job that runs the prepare step.
 pub fn k8s_prepare_job(job: &FarmJob, pod: &K8sPod) -> String {
-    let mut s = k8s_head(job, &format!("{}-prepare", k8s_name(&job.name)));
+    let mut s = k8s_head(job, &k8s_job_names(&job.name).prepare);
     s.push_str("  backoffLimit: 2\n");
     s.push_str(&k8s_pod(job, pod, &job.prepare_args()));
     s
@@ -176,7 +232,7 @@ pub fn k8s_prepare_job(job: &FarmJob, pod: &K8sPod) -> String {
 /// completions; each pod runs `nephele render … --task auto/N`, which reads
 /// `JOB_COMPLETION_INDEX`. A failed pod is retried (frames resume).
 pub fn k8s_indexed_job(job: &FarmJob, pod: &K8sPod) -> String {
-    let mut s = k8s_head(job, &k8s_name(&job.name));
+    let mut s = k8s_head(job, &k8s_job_names(&job.name).render);
     s.push_str(&format!(
         "  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimitPerIndex: 3\n  maxFailedIndexes: 0\n",
         n = job.tasks
@@ -222,6 +278,25 @@ pub fn k8s_name(name: &str) -> String {
     let s = s.trim_matches('-');
     let s: String = s.chars().take(55).collect();
     if s.is_empty() { "nephele".into() } else { s }
+}
+
+/// The names of a shot's two Kubernetes Jobs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct K8sJobNames {
+    /// The prepare Job: the render Job's name and `-prepare` (at most 63 characters).
+    pub prepare: String,
+    /// The Indexed Job of the render array ([`k8s_name`] of the shot's job name).
+    pub render: String,
+}
+
+/// The names of the Jobs of a shot whose job name is `name`: the one place they are made, for
+/// the manifests and for the instructions printed beside them.
+pub fn k8s_job_names(name: &str) -> K8sJobNames {
+    let render = k8s_name(name);
+    K8sJobNames {
+        prepare: format!("{render}-prepare"),
+        render,
+    }
 }
 
 /// The deepest folder holding both the scene file and the output folder (absolute paths), or
@@ -327,9 +402,39 @@ mod tests {
     }
 
     #[test]
+    fn sbatch_options_cannot_inject_lines() {
+        let bad = ["--comment=x\necho INJECTED".to_string()];
+        let e = check_sbatch_args(&bad).unwrap_err();
+        assert!(e.contains("control character"), "{e}");
+        for s in [slurm_array_script(&job(), &bad), slurm_prepare_script(&job(), &bad)] {
+            assert!(!s.contains("INJECTED"), "{s}");
+        }
+        assert!(check_sbatch_args(&["--comment=\"x\"".into()]).is_err());
+        assert!(check_sbatch_args(&["echo".into()]).is_err());
+        let spaced = ["--comment=two words".to_string()];
+        assert!(check_sbatch_args(&spaced).is_ok());
+        let s = slurm_array_script(&job(), &spaced);
+        assert!(s.contains("#SBATCH \"--comment=two words\"\n"), "{s}");
+        let named = FarmJob {
+            name: "my shot; rm -rf".into(),
+            ..job()
+        };
+        let s = slurm_array_script(&named, &[]);
+        assert!(s.contains("#SBATCH --job-name=my_shot__rm_-rf\n"), "{s}");
+    }
+
+    #[test]
     fn quoting_survives_quotes() {
         assert_eq!(shell_quote("it's"), r"'it'\''s'");
         assert_eq!(k8s_name("Duck_Diffusion.v2"), "duck-diffusion-v2");
+        // One function names both jobs: `shot_` is `shot` and `shot-prepare`, and a long name
+        // keeps its prepare job within Kubernetes' 63 characters.
+        let names = k8s_job_names("shot_");
+        assert_eq!((names.render.as_str(), names.prepare.as_str()), ("shot", "shot-prepare"));
+        let long = k8s_job_names(&"a".repeat(60));
+        assert_eq!(long.render.len(), 55);
+        assert_eq!(long.prepare, format!("{}-prepare", long.render));
+        assert!(long.prepare.len() <= 63);
         assert_eq!(sbatch_path(Path::new("/a b/c")), "\"/a b/c\"");
         assert_eq!(sbatch_path(Path::new("/a/c")), "/a/c");
     }

@@ -26,3 +26,7 @@ pub mod progress;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod test_hook;
+
+/// The renderer's version ([`scene::provenance::RENDER_VERSION`]).
+pub use scene::provenance::RENDER_VERSION;

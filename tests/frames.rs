@@ -783,18 +783,18 @@ fn cryptomatte_mattes_name_the_clusters_and_cover_the_alpha() {
             seen.len() >= 3,
             "frame {frame}: several clusters show: {seen:?}"
         );
-        if frame == 6 {
-            if let Some(info) = oiiotool_info(&path) {
-                for line in [
-                    "CryptoObject00.R, CryptoObject00.G, CryptoObject00.B, CryptoObject00.A",
-                    "CryptoObject02.A",
-                    "cryptomatte/3ae39a5/name: \"CryptoObject\"",
-                    "cryptomatte/3ae39a5/hash: \"MurmurHash3_32\"",
-                    "cryptomatte/3ae39a5/conversion: \"uint32_to_float32\"",
-                    "cryptomatte/3ae39a5/manifest: \"{\"cluster_00\":\"",
-                ] {
-                    assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
-                }
+        if frame == 6
+            && let Some(info) = oiiotool_info(&path)
+        {
+            for line in [
+                "CryptoObject00.R, CryptoObject00.G, CryptoObject00.B, CryptoObject00.A",
+                "CryptoObject02.A",
+                "cryptomatte/3ae39a5/name: \"CryptoObject\"",
+                "cryptomatte/3ae39a5/hash: \"MurmurHash3_32\"",
+                "cryptomatte/3ae39a5/conversion: \"uint32_to_float32\"",
+                "cryptomatte/3ae39a5/manifest: \"{\"cluster_00\":\"",
+            ] {
+                assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
             }
         }
     }

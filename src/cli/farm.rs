@@ -72,6 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--submit submits to Slurm only; apply the k8s manifests with kubectl (README, \"Rendering on a farm\")"
         );
     }
+    farm::check_sbatch_args(&args.sbatch_args).map_err(anyhow::Error::msg)?;
     let scene = scene::load_scene(&args.scene)?;
     let opts = RenderOptions {
         frames: args.frames.clone(),
@@ -176,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok(())
         }
         (Engine::K8s, _) => {
-            let prep_job = farm::k8s_name(&format!("{}-prepare", job.name));
+            let prep_job = farm::k8s_job_names(&job.name).prepare;
             println!(
                 "run with:\n  kubectl apply -f {}\n  kubectl wait --for=condition=complete --timeout=1h job/{prep_job}\n  kubectl apply -f {}",
                 farm::shell_quote(&prepare.to_string_lossy()),

@@ -223,11 +223,11 @@ pub fn grow_seed(
             }
         },
     );
-    if let Some(e) = qp.add_scaled(beta, &q3).ellipsoid() {
-        if e.semi_axes.min_element() >= limits.min_stage3_axis {
-            grown.ellipsoid = e;
-            grown.stage = 3;
-        }
+    if let Some(e) = qp.add_scaled(beta, &q3).ellipsoid()
+        && e.semi_axes.min_element() >= limits.min_stage3_axis
+    {
+        grown.ellipsoid = e;
+        grown.stage = 3;
     }
     Some(capped(grown, p, limits))
 }

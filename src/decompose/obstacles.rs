@@ -157,10 +157,10 @@ impl ObstacleSet {
                     }
                 }
             }
-            if best < improved_from {
-                if let Some(b) = region(best) {
-                    bounds = b;
-                }
+            if best < improved_from
+                && let Some(b) = region(best)
+            {
+                bounds = b;
             }
         }
         (best, arg)

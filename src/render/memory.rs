@@ -44,25 +44,30 @@ pub fn format_bytes(b: u64) -> String {
     }
 }
 
-/// `Ok` when a `width × height` frame at `preset` (and at `Preview`, which `--preview` may
-/// use) fits in the available memory; otherwise the message says what it needs and what there
-/// is.
-pub fn check(width: u32, height: u32, preset: QualityPreset) -> Result<(), String> {
-    let need = frame_bytes(width, height, &Quality::preset(preset));
-    // More pixels than a u32 index can address cannot be rendered whatever the memory.
+/// `Ok` unless a `width × height` frame has more pixels than a `u32` index can address; checked
+/// when a scene is loaded, whatever machine loads it.
+pub fn check_size(width: u32, height: u32, preset: QualityPreset) -> Result<(), String> {
     let pixels = width as u64 * height as u64;
     if pixels > u32::MAX as u64 {
         return Err(format!(
             "{width}×{height} is {pixels} pixels (at most {} per frame) and would need about {} \
              of memory: lower shot.width/height",
             u32::MAX,
-            format_bytes(need)
+            format_bytes(frame_bytes(width, height, &Quality::preset(preset)))
         ));
     }
+    Ok(())
+}
+
+/// `Ok` when a `width × height` frame at `quality` fits in the memory available on this
+/// machine; otherwise the message says what it needs and what there is. Checked where the
+/// frames are rendered (a farm's head node that only loads the scene may have far less).
+pub fn check_available(width: u32, height: u32, quality: &Quality) -> Result<(), String> {
+    let need = frame_bytes(width, height, quality);
     match available_bytes() {
         Some(have) if need > have => Err(format!(
-            "{width}×{height} needs about {} of memory per frame, {} is available: lower \
-             shot.width/height",
+            "{width}×{height} needs about {} of memory per frame, {} is available on this \
+             machine: lower shot.width/height, or render on a machine with more memory",
             format_bytes(need),
             format_bytes(have)
         )),
@@ -76,9 +81,14 @@ mod tests {
 
     #[test]
     fn huge_frames_are_refused_with_their_size() {
-        let e = check(100_000, 100_000, QualityPreset::Final).unwrap_err();
+        let e = check_size(100_000, 100_000, QualityPreset::Final).unwrap_err();
         assert!(e.contains("700.3 GB"), "{e}");
-        assert!(check(640, 360, QualityPreset::Final).is_ok());
+        assert!(check_size(640, 360, QualityPreset::Final).is_ok());
+        let final_ = Quality::preset(QualityPreset::Final);
+        assert!(check_available(640, 360, &final_).is_ok());
+        // 60 000 × 60 000 needs 252 GB: more than any test machine has.
+        let e = check_available(60_000, 60_000, &final_).unwrap_err();
+        assert!(e.contains("is available on this machine"), "{e}");
         assert_eq!(format_bytes(2_500_000_000), "2.5 GB");
     }
 }

@@ -310,6 +310,11 @@ pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
         })
 }
 
+/// Lowest frame rate a shot may have.
+pub const MIN_FPS: f64 = 1.0;
+/// Highest frame rate a shot may have.
+pub const MAX_FPS: f64 = 1000.0;
+
 /// Check ranges and finiteness; errors name the field.
 pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     let bad = |field: &str, message: String| SceneError::Invalid {
@@ -331,6 +336,17 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         if !(v.is_finite() && v > 0.0) {
             return Err(bad(name, format!("must be a positive number, got {v}")));
         }
+    }
+    // A frame rate is frames per second of film or video (1 to 1000); 1e-9 would put each
+    // frame 30 years apart and be written to the EXR as 0/1001.
+    if !(MIN_FPS..=MAX_FPS).contains(&s.shot.fps) {
+        return Err(bad(
+            "shot.fps",
+            format!(
+                "must be {MIN_FPS} to {MAX_FPS} frames per second (e.g. 24, 23.976, 30), got {}",
+                s.shot.fps
+            ),
+        ));
     }
     if !(s.shot.shutter.is_finite() && (0.0..=1.0).contains(&s.shot.shutter)) {
         return Err(bad(
@@ -423,7 +439,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     }
     validate_light(&bad, &s.sun, &s.sky)?;
     validate_cloud(&bad, &s.cloud)?;
-    crate::render::memory::check(s.shot.width, s.shot.height, s.quality)
+    crate::render::memory::check_size(s.shot.width, s.shot.height, s.quality)
         .map_err(|message| bad("shot", message))?;
     if s.output.formats.is_empty() {
         return Err(bad(

@@ -1,38 +1,28 @@
 //! A frame's files: their names, and writing them atomically (EXR with its header attributes,
 //! PNG, the density grids, the optional blob dump).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rayon::prelude::*;
 
 use super::shot::Shot;
-use super::{Format, SceneError, provenance};
+use super::provenance::{self, FileKind, FrameCheck, FrameInputs, ListedFile, Manifest, WantedFile};
+use super::{Format, SceneError};
 use crate::blobby::Blob;
 use crate::render::{self, RenderSettings};
 
-/// The files of frame number `frame`: one per format, plus the blob dump if asked.
-pub fn frame_paths(shot: &Shot, frame: u32) -> Vec<PathBuf> {
-    let scene = shot.scene();
-    let stem = frame_stem(shot, frame);
-    let mut v: Vec<PathBuf> = scene
-        .file
-        .output
-        .formats
-        .iter()
-        .map(|f| shot.dir().join(format!("{stem}.{}", f.extension())))
-        .collect();
-    if shot.options().dump_blobs {
-        v.push(shot.dir().join(format!("{stem}.blobs.ron")));
-    }
-    v
-}
-
 /// `<name>_0001`: the file name of frame number `frame` without its extension, the number
-/// zero-padded to `output.padding` digits.
+/// zero-padded to `output.padding` digits; a look test's region render is `<name>_0001.region`,
+/// so it never replaces (or is taken for) the frame itself.
 pub fn frame_stem(shot: &Shot, frame: u32) -> String {
     let scene = shot.scene();
     let digits = scene.file.output.padding as usize;
-    format!("{}_{frame:0digits$}", scene.name)
+    let region = if shot.region().is_some() {
+        ".region"
+    } else {
+        ""
+    };
+    format!("{}_{frame:0digits$}{region}", scene.name)
 }
 
 /// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
@@ -55,18 +45,23 @@ pub fn grid_voxel(shot: &Shot) -> Result<f64, SceneError> {
 
 /// What one frame's files are made from.
 pub(crate) struct FrameOutput<'a> {
-    pub image: &'a render::Frame,
+    /// The rendered image (`None` when no file to write needs it).
+    pub image: Option<&'a render::Frame>,
     pub settings: &'a RenderSettings,
     pub blobs: &'a [Blob],
     /// Voxel size of the density grids.
     pub voxel: f64,
-    /// The frame's provenance hash ([`super::provenance`]).
-    pub hash: u64,
+    /// The frame's inputs ([`super::provenance`]).
+    pub inputs: &'a FrameInputs,
+    /// Which files to write, and which to remove.
+    pub check: &'a FrameCheck,
 }
 
-/// Write one frame's files atomically, the formats in parallel if `parallel`; the blob dump (if
-/// any), then the manifest, are written last. The density grid is sampled once, if a grid
-/// format is asked for.
+/// Write one frame's files atomically, the formats in parallel if `parallel`: first the old
+/// manifest is removed (so an interrupted write never leaves old and new files under one
+/// manifest), then the files `out.check` says to write, then the stale files of formats no
+/// longer asked for are removed, and the manifest listing every file is written last. The
+/// density grid is sampled once, if a grid file is written.
 pub(crate) fn write_frame(
     shot: &Shot,
     frame: u32,
@@ -79,16 +74,30 @@ pub(crate) fn write_frame(
         settings,
         blobs,
         voxel,
-        hash,
+        inputs,
+        check,
     } = *out;
-    let paths = frame_paths(shot, frame);
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| SceneError::Io { path, source }
     };
-    // The density grid is sampled once, before the files, if a grid format is asked for.
-    let formats = &scene.file.output.formats;
-    let grid = if formats.iter().any(|f| f.is_grid()) {
+    let manifest = provenance::manifest_path(shot, frame);
+    match std::fs::remove_file(&manifest) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(io(&manifest)(e)),
+    }
+    let todo: Vec<&WantedFile> = check
+        .wanted
+        .iter()
+        .zip(&check.write)
+        .filter_map(|(w, &go)| go.then_some(w))
+        .collect();
+    // The density grid is sampled once, before the files, if a grid file is written.
+    let grid = if todo
+        .iter()
+        .any(|w| matches!(w.kind, FileKind::Format(f) if f.is_grid()))
+    {
         Some(
             crate::export::frame_grid(settings, blobs, voxel).map_err(|e| SceneError::Invalid {
                 path: scene.path.clone(),
@@ -99,17 +108,27 @@ pub(crate) fn write_frame(
     } else {
         None
     };
-    // The formats are independent files: written in parallel when asked (a 1080p frame's EXR
-    // and PNG had taken 0.42 s one after the other), the first error in the scene's order
-    // reported either way.
-    let write = |(format, path): (&Format, &PathBuf)| -> Result<(), SceneError> {
-        match format {
-            Format::Exr => {
-                let meta = frame_metadata(shot, settings, frame, hash);
-                render::output::write_exr_with(path, image, &meta).map_err(io(path))?
+    let needs_image = || {
+        image.ok_or_else(|| SceneError::Invalid {
+            path: scene.path.clone(),
+            field: "output.formats".into(),
+            message: format!("frame {frame}: an image file to write but no image rendered"),
+        })
+    };
+    // The files are independent: written in parallel when asked (a 1080p frame's EXR and PNG
+    // had taken 0.42 s one after the other), the first error in the scene's order reported
+    // either way.
+    let write = |w: &&WantedFile| -> Result<(), SceneError> {
+        let path = &w.path;
+        match w.kind {
+            FileKind::Format(Format::Exr) => {
+                let meta = frame_metadata(shot, settings, frame, w.hash);
+                render::output::write_exr_with(path, needs_image()?, &meta).map_err(io(path))?
             }
-            Format::Png => render::output::write_png(path, image, settings).map_err(io(path))?,
-            Format::Vdb => {
+            FileKind::Format(Format::Png) => {
+                render::output::write_png(path, needs_image()?, settings).map_err(io(path))?
+            }
+            FileKind::Format(Format::Vdb) => {
                 let g = grid.as_ref().expect("sampled above");
                 let uuid_seed =
                     crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
@@ -124,46 +143,77 @@ pub(crate) fn write_frame(
                 ];
                 crate::export::write_vdb_grids(path, &grids, uuid_seed).map_err(io(path))?
             }
-            Format::Vol => {
+            FileKind::Format(Format::Vol) => {
                 let g = grid.as_ref().expect("sampled above");
                 crate::export::write_vol(path, g).map_err(io(path))?
+            }
+            FileKind::Blobs => {
+                let text = blobs_to_ron(blobs);
+                crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?
             }
         }
         Ok(())
     };
     if parallel {
-        let written: Vec<Result<(), SceneError>> =
-            formats.par_iter().zip(&paths).map(write).collect();
+        let written: Vec<Result<(), SceneError>> = todo.par_iter().map(write).collect();
         written.into_iter().collect::<Result<(), SceneError>>()?;
     } else {
-        formats.iter().zip(&paths).try_for_each(write)?;
+        todo.iter().try_for_each(write)?;
     }
-    if shot.options().dump_blobs {
-        let path = paths.last().expect("dump path");
-        let text = blobs_to_ron(blobs);
-        crate::atomic::write_bytes_atomically(path, text.as_bytes()).map_err(io(path))?;
+    crate::test_hook::stop_at(&format!("after-files:{frame}"));
+    for path in &check.stale {
+        match std::fs::remove_file(path) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(io(path)(e)),
+        }
     }
-    let record = provenance::FrameRecord {
-        frame,
-        hash: provenance::hash_text(hash),
-        version: env!("CARGO_PKG_VERSION").to_string(),
-        output: provenance::output_kind(shot),
-        files: paths
-            .iter()
-            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .collect(),
-    };
-    let manifest = provenance::manifest_path(shot, frame);
-    crate::atomic::write_bytes_atomically(&manifest, provenance::record_text(&record).as_bytes())
+    let mut listed = Vec::with_capacity(check.wanted.len());
+    for w in &check.wanted {
+        let bytes = std::fs::metadata(&w.path).map_err(io(&w.path))?.len();
+        listed.push(ListedFile {
+            name: w
+                .path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            kind: w.kind.key().to_string(),
+            hash: provenance::hash_text(w.hash),
+            bytes,
+        });
+    }
+    let record = Manifest::new(frame, inputs, listed);
+    crate::atomic::write_bytes_atomically(&manifest, record.to_text().as_bytes())
         .map_err(io(&manifest))?;
     Ok(())
 }
 
-/// The EXR attributes of frame number `frame` with provenance hash `hash`: the camera's
-/// matrices, `chromaticities` of `output.colorspace`, `framesPerSecond`, and the strings
-/// `nephele/scene` (the scene file's name), `nephele/frame`, `nephele/hash`,
-/// `nephele/colorspace`, `nephele/seed` (the scene's) and `nephele/version` (the crate's).
-/// Nothing depends on the run, so frames stay byte-identical.
+/// The `nephele/…` strings of frame number `frame`'s EXR with file hash `hash`: `scene` (the
+/// scene file's name), `frame`, `hash`, `colorspace`, `seed` (the scene's) and `version` (the
+/// crate's).
+pub fn header_strings(shot: &Shot, frame: u32, hash: u64) -> Vec<(String, String)> {
+    let scene = shot.scene();
+    let file = scene
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    vec![
+        ("scene".to_string(), file),
+        ("frame".to_string(), frame.to_string()),
+        ("hash".to_string(), provenance::hash_text(hash)),
+        (
+            "colorspace".to_string(),
+            scene.file.output.colorspace.name().to_string(),
+        ),
+        ("seed".to_string(), scene.file.seed.to_string()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+    ]
+}
+
+/// The EXR attributes of frame number `frame` whose EXR has hash `hash`: the camera's
+/// matrices, `chromaticities` of `output.colorspace`, `framesPerSecond`, and the
+/// [`header_strings`]. Nothing depends on the run, so frames stay byte-identical.
 pub fn frame_metadata(
     shot: &Shot,
     settings: &RenderSettings,
@@ -171,25 +221,12 @@ pub fn frame_metadata(
     hash: u64,
 ) -> render::output::FrameMetadata {
     let scene = shot.scene();
-    let file = scene
-        .path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
     let space = scene.file.output.colorspace;
-    let strings = vec![
-        ("scene".to_string(), file),
-        ("frame".to_string(), frame.to_string()),
-        ("hash".to_string(), provenance::hash_text(hash)),
-        ("colorspace".to_string(), space.name().to_string()),
-        ("seed".to_string(), scene.file.seed.to_string()),
-        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
-    ];
     let mut meta = render::output::FrameMetadata::new(
         &settings.camera,
         settings.width,
         settings.height,
-        strings,
+        header_strings(shot, frame, hash),
     );
     meta.color_space = space;
     meta.frames_per_second = Some(render::output::fps_rational(scene.file.shot.fps));

@@ -11,10 +11,12 @@
 //! directory, so renders land in the repository's `renders/` when run from its root.
 
 pub mod camera;
+pub mod canonical;
 pub mod chunk;
 pub mod file;
 pub mod files;
 pub mod frames;
+pub mod lock;
 pub mod provenance;
 pub mod run;
 pub mod shot;
@@ -100,6 +102,16 @@ pub enum SceneError {
         scene: PathBuf,
         /// Underlying error.
         source: crate::blobby::ModelError,
+    },
+    /// Another process is writing the frame (its lock file is held).
+    #[error(
+        "{path}: this frame is being written by another {holder}; wait for it to finish, or give          this render another output.name or --output"
+    )]
+    Locked {
+        /// The frame's lock file.
+        path: PathBuf,
+        /// Who holds it, as the holder wrote it (process id, host, scene).
+        holder: String,
     },
     /// The animation cannot be planned.
     #[error("{scene}: {source}")]

@@ -1,192 +1,664 @@
-//! Frame provenance: what made a frame, so that resume skips only frames that are up to date.
+//! Frame provenance: what made each file of a frame, so that resume keeps only files that are
+//! exactly what the scene asks for now — content-addressed, as Bazel and Nix trust an output
+//! only by its own hash.
 //!
-//! A frame's **hash** covers everything its pixels are computed from: the renderer's inputs for
-//! that frame — its blobs (which follow from the target model, the target transform, the
-//! animation and the seed) and its render settings (image size, camera at that frame, sun,
-//! sky, cloud look, exposure, quality, seed, time) — the output kind (final or preview, the
-//! region of a look test, render passes, the EXR's colour space, the grids' voxel size; with
-//! VDBs, the blobs' motions about the frame, which make the velocity grid) and the renderer's
-//! version. It is written into the EXR header (`nephele/hash`, 16 hex digits)
-//! and, for every format, into a small manifest beside the frame, `<name>_<frame>.manifest.json`
-//! (frame, hash, version, output kind, file names), written last: a frame whose manifest and
-//! files are there and whose hash matches is finished and up to date.
+//! **Inputs.** A frame's inputs are hashed by component ([`Component`]): the renderer
+//! ([`RENDER_VERSION`]), the image settings, the camera, the sun and sky, the cloud's look, the
+//! blobs, the film (region, passes, mattes), the shutter, the grids (voxel size, the blobs'
+//! motions, the frame rate of the velocity) and the EXR header (scene name, frame, seed, colour
+//! space, frame rate). Every value goes in through its canonical encoding
+//! ([`super::canonical`]: field by field, little-endian bits), so a hash is the same on every
+//! machine, at any thread count, and changes with any input.
 //!
-//! Resume renders a frame again when its files or its manifest are missing (a frame written by
-//! an older nephele has no manifest) or its hash differs, and says why: the renderer's version
-//! changed, the output kind changed (a region or preview frame is never taken for a full one),
-//! or — everything else — the scene changed. Hashing a frame's own inputs means that a scene
-//! edit re-renders exactly the frames whose inputs it changes (a morph's `stagger` leaves the
-//! held frames at both ends alone). The hash is FNV-1a over exact text (shortest round-trip
-//! floats), so it is the same on every machine and at any thread count.
+//! **Files.** Each file's hash covers the components it is made from (a PNG does not depend on
+//! the EXR header, a VDB not on the camera): adding or removing a format, or changing what only
+//! one format depends on, leaves the other files alone. The EXR carries its own hash in its
+//! header (`nephele/hash`); every file is listed in the frame's manifest,
+//! `<name>_<frame>.manifest.json`, with its hash and size.
+//!
+//! **Manifest.** Written last, after every file is in place, and removed before the first file
+//! of a re-render replaces an old one; it holds a check hash over its own contents, so an edited
+//! or truncated manifest is never trusted. A frame is **up to date** only when its manifest is
+//! readable and every file the scene asks for is on disk, listed with the hash the scene gives
+//! it now, of the listed size, and (EXR) carrying that hash in its header.
+//!
+//! **Reasons.** A frame that is not up to date says why, from the hashes alone: `interrupted`,
+//! `manifest unreadable: …`, `renderer changed`, `formats changed: +vol`, or the components
+//! whose hashes differ (`changed: camera, sun and sky`).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::Shot;
+use super::canonical::{Canonical, Encoder};
+use super::{Format, Shot};
 use crate::blobby::Blob;
-use crate::render::RenderSettings;
+use crate::render::{Film, RenderSettings};
 
-/// How [`output_kind`] names a region render.
-const REGION: &str = "region";
+/// The renderer's version: raised whenever a change makes any frame's pixels or grids differ
+/// (the pinned seeded frame hashes in the tests change with it, and a test fails if they change
+/// while it does not). Frames of another render version are re-rendered on resume.
+pub const RENDER_VERSION: u32 = 1;
+
+/// One part of a frame's inputs, hashed on its own so that a reason can name what changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Component {
+    /// [`RENDER_VERSION`].
+    Renderer,
+    /// Image size, quality, exposure, seed, time, length unit.
+    Image,
+    /// The frame's camera.
+    Camera,
+    /// Sun and sky.
+    Light,
+    /// Cloud material, billows and base.
+    Look,
+    /// The frame's blobs.
+    Blobs,
+    /// Region, passes and ID mattes.
+    Film,
+    /// The open shutter's time samples.
+    Shutter,
+    /// Voxel size, the blobs' motions and the frame rate (the grids and their velocity).
+    Grid,
+    /// The EXR header's strings and frame rate.
+    Header,
+}
+
+impl Component {
+    /// Every component, in manifest order.
+    pub const ALL: [Component; 10] = [
+        Component::Renderer,
+        Component::Image,
+        Component::Camera,
+        Component::Light,
+        Component::Look,
+        Component::Blobs,
+        Component::Film,
+        Component::Shutter,
+        Component::Grid,
+        Component::Header,
+    ];
+
+    /// Its key in a manifest.
+    pub fn key(self) -> &'static str {
+        match self {
+            Component::Renderer => "renderer",
+            Component::Image => "image",
+            Component::Camera => "camera",
+            Component::Light => "light",
+            Component::Look => "look",
+            Component::Blobs => "blobs",
+            Component::Film => "film",
+            Component::Shutter => "shutter",
+            Component::Grid => "grid",
+            Component::Header => "header",
+        }
+    }
+
+    /// What it is, for a reason.
+    pub fn label(self) -> &'static str {
+        match self {
+            Component::Renderer => "renderer",
+            Component::Image => "image size or quality",
+            Component::Camera => "camera",
+            Component::Light => "sun and sky",
+            Component::Look => "cloud look",
+            Component::Blobs => "cloud shape (blobs)",
+            Component::Film => "region, passes or mattes",
+            Component::Shutter => "shutter",
+            Component::Grid => "grid (voxel size, motion, fps)",
+            Component::Header => "EXR header (scene, seed, colour space, fps)",
+        }
+    }
+
+    /// The components a file of `kind` is made from.
+    fn of(kind: FileKind) -> &'static [Component] {
+        use Component::*;
+        match kind {
+            FileKind::Format(Format::Exr) => &[
+                Renderer, Image, Camera, Light, Look, Blobs, Film, Shutter, Header,
+            ],
+            FileKind::Format(Format::Png) => {
+                &[Renderer, Image, Camera, Light, Look, Blobs, Film, Shutter]
+            }
+            FileKind::Format(Format::Vdb) | FileKind::Format(Format::Vol) => {
+                &[Renderer, Look, Blobs, Grid]
+            }
+            FileKind::Blobs => &[Blobs],
+        }
+    }
+}
+
+/// What a file of a frame is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    /// One of the scene's output formats.
+    Format(Format),
+    /// The blob dump (`--dump-blobs`).
+    Blobs,
+}
+
+impl FileKind {
+    /// Its name in a manifest and in reasons (`exr`, …, `blobs`).
+    pub fn key(self) -> &'static str {
+        match self {
+            FileKind::Format(f) => f.extension(),
+            FileKind::Blobs => "blobs",
+        }
+    }
+
+    /// True when the file is made from the rendered image (so writing it needs a render).
+    pub fn needs_image(self) -> bool {
+        matches!(self, FileKind::Format(Format::Exr | Format::Png))
+    }
+
+    fn from_key(key: &str) -> Option<FileKind> {
+        if key == "blobs" {
+            return Some(FileKind::Blobs);
+        }
+        Format::ALL
+            .into_iter()
+            .find(|f| f.extension() == key)
+            .map(FileKind::Format)
+    }
+}
+
+/// A frame's inputs, hashed by component (see the module doc).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameInputs {
+    hashes: BTreeMap<Component, u64>,
+}
+
+impl FrameInputs {
+    /// The hash of one component.
+    pub fn hash(&self, c: Component) -> u64 {
+        self.hashes[&c]
+    }
+
+    /// The hash of a file of `kind`: its kind and the hashes of the components it is made from.
+    pub fn file_hash(&self, kind: FileKind) -> u64 {
+        let mut e = Encoder::new();
+        e.str("nephele frame file").str(kind.key());
+        for &c in Component::of(kind) {
+            e.str(c.key()).put(&self.hash(c));
+        }
+        e.finish()
+    }
+}
+
+/// The inputs of the shot's 0-based frame `k` (frame number `frame`), rendered with `settings`
+/// from `blobs` into `film`; `voxel` is the density grids' voxel size (0 without grids).
+pub fn frame_inputs(
+    shot: &Shot,
+    k: u32,
+    settings: &RenderSettings,
+    blobs: &[Blob],
+    film: &Film,
+    voxel: f64,
+) -> FrameInputs {
+    let scene = shot.scene();
+    let file = &scene.file;
+    let hash = |f: &dyn Fn(&mut Encoder)| {
+        let mut e = Encoder::new();
+        f(&mut e);
+        e.finish()
+    };
+    let mut hashes = BTreeMap::new();
+    hashes.insert(Component::Renderer, hash(&|e| {
+        e.str("render version").put(&RENDER_VERSION);
+    }));
+    let RenderSettings {
+        width,
+        height,
+        camera,
+        sun,
+        sky,
+        cloud,
+        exposure,
+        length_scale,
+        seed,
+        time,
+        quality,
+        base,
+    } = settings;
+    hashes.insert(Component::Image, hash(&|e| {
+        e.put(width)
+            .put(height)
+            .put(exposure)
+            .put(length_scale)
+            .put(seed)
+            .put(time)
+            .put(quality);
+    }));
+    hashes.insert(Component::Camera, camera.canonical_hash());
+    hashes.insert(Component::Light, hash(&|e| {
+        e.put(sun).put(sky);
+    }));
+    hashes.insert(Component::Look, hash(&|e| {
+        e.put(cloud).put(base).put(length_scale);
+    }));
+    hashes.insert(Component::Blobs, blobs.canonical_hash());
+    hashes.insert(Component::Film, film.canonical_hash());
+    // An open shutter renders the blobs over its time samples.
+    let shutter = if file.shot.shutter > 0.0 {
+        shot.shutter(k, quality.time_samples).ok().flatten()
+    } else {
+        None
+    };
+    hashes.insert(Component::Shutter, hash(&|e| {
+        e.put(&file.shot.shutter).put(&shutter);
+    }));
+    // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
+    // (in units per second, so the frame rate counts too), and UUIDs from the seed and frame.
+    let motions = if file.output.formats.contains(&Format::Vdb) {
+        shot.prepared().ok().map(|prep| {
+            let plan = &prep.plan;
+            let t = plan.timeline().time(k as usize);
+            crate::animate::VelocityField::of_plan(plan, t)
+                .motions()
+                .to_vec()
+        })
+    } else {
+        None
+    };
+    let frame = shot.number(k);
+    hashes.insert(Component::Grid, hash(&|e| {
+        e.put(&voxel)
+            .put(&motions)
+            .put(&file.shot.fps)
+            .put(&file.seed)
+            .put(&frame);
+    }));
+    let meta = super::files::header_strings(shot, frame, 0);
+    hashes.insert(Component::Header, hash(&|e| {
+        for (k, v) in &meta {
+            // The hash itself is written after it is known.
+            if k != "hash" {
+                e.str(k).str(v);
+            }
+        }
+        let (num, den) = crate::render::output::fps_rational(file.shot.fps);
+        e.put(&num).put(&den).put(&file.shot.fps);
+        e.put(&(file.output.colorspace as u8));
+    }));
+    FrameInputs { hashes }
+}
+
+/// A file as a manifest lists it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ListedFile {
+    /// File name, in the manifest's folder.
+    pub name: String,
+    /// What it is (`exr`, `png`, `vdb`, `vol`, `blobs`).
+    pub kind: String,
+    /// Its hash ([`FrameInputs::file_hash`], 16 hex digits).
+    pub hash: String,
+    /// Its size in bytes.
+    pub bytes: u64,
+}
 
 /// What a frame's manifest records.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct FrameRecord {
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
     /// Frame number.
     pub frame: u32,
-    /// The frame's hash (16 hex digits).
-    pub hash: String,
-    /// nephele's version that rendered it.
-    pub version: String,
-    /// The output kind ([`output_kind`]).
-    pub output: String,
-    /// The frame's files, by name, in the manifest's folder.
-    pub files: Vec<String>,
+    /// [`RENDER_VERSION`] of the renderer that made the files.
+    pub render_version: u32,
+    /// nephele's crate version (for people; not checked).
+    pub nephele: String,
+    /// The inputs' hash per component, by [`Component::key`].
+    pub inputs: BTreeMap<String, String>,
+    /// The frame's files.
+    pub files: Vec<ListedFile>,
+    /// Hash of everything above ([`Manifest::check_hash`]): a manifest whose check fails was
+    /// edited or damaged and is not trusted.
+    pub check: String,
 }
 
-/// Whether a frame on disk can be kept.
+impl Manifest {
+    /// A manifest of frame number `frame` with these inputs and files, its check hash set.
+    pub fn new(frame: u32, inputs: &FrameInputs, files: Vec<ListedFile>) -> Manifest {
+        let mut m = Manifest {
+            frame,
+            render_version: RENDER_VERSION,
+            nephele: env!("CARGO_PKG_VERSION").to_string(),
+            inputs: Component::ALL
+                .iter()
+                .map(|&c| (c.key().to_string(), hash_text(inputs.hash(c))))
+                .collect(),
+            files,
+            check: String::new(),
+        };
+        m.check = hash_text(m.check_hash());
+        m
+    }
+
+    /// The canonical hash of every field but `check`.
+    pub fn check_hash(&self) -> u64 {
+        let mut e = Encoder::new();
+        e.str("nephele manifest")
+            .put(&self.frame)
+            .put(&self.render_version)
+            .str(&self.nephele);
+        e.len(self.inputs.len());
+        for (k, v) in &self.inputs {
+            e.str(k).str(v);
+        }
+        e.len(self.files.len());
+        for f in &self.files {
+            e.str(&f.name).str(&f.kind).str(&f.hash).put(&f.bytes);
+        }
+        e.finish()
+    }
+
+    /// The manifest's text.
+    pub fn to_text(&self) -> String {
+        // A plain struct of strings and numbers always serializes.
+        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
+    }
+}
+
+/// Why a manifest cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ManifestProblem {
+    /// There is none.
+    Missing,
+    /// There is one, but it cannot be trusted; the reason says why.
+    Unreadable(String),
+    /// A manifest of a nephele before render versions.
+    Old,
+}
+
+/// Read and check the manifest at `path`.
+pub fn read_manifest(path: &Path) -> Result<Manifest, ManifestProblem> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(ManifestProblem::Missing),
+        Err(e) => return Err(ManifestProblem::Unreadable(e.to_string())),
+    };
+    if text.trim().is_empty() {
+        return Err(ManifestProblem::Unreadable("empty file".into()));
+    }
+    let m: Manifest = match serde_json::from_str(&text) {
+        Ok(m) => m,
+        Err(e) => {
+            // The manifests of nephele before render versions had `hash` and `version`.
+            let old = serde_json::from_str::<serde_json::Value>(&text)
+                .ok()
+                .is_some_and(|v| v.get("version").is_some() && v.get("check").is_none());
+            return Err(if old {
+                ManifestProblem::Old
+            } else {
+                ManifestProblem::Unreadable(e.to_string())
+            });
+        }
+    };
+    if m.check != hash_text(m.check_hash()) {
+        return Err(ManifestProblem::Unreadable(
+            "its check hash does not match its contents (edited or damaged)".into(),
+        ));
+    }
+    Ok(m)
+}
+
+/// A file the scene asks for, with the hash it must have.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WantedFile {
+    /// What it is.
+    pub kind: FileKind,
+    /// Where it goes.
+    pub path: PathBuf,
+    /// Its hash.
+    pub hash: u64,
+}
+
+/// What resume does with a frame.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum FrameStatus {
-    /// Files and manifest present, hash matching: skip it.
+    /// Every file present, listed and of the right hash: skip it.
     UpToDate,
-    /// Never rendered (no files).
+    /// Never rendered (no files, no manifest).
     New,
     /// On disk but not up to date; the reason, for the run's summary.
     OutOfDate(String),
 }
 
-/// The output kind of `shot`'s frames: `final` or `preview`, the EXR colour space, the render
-/// passes with their ID mattes, and the region of a look test (`final; Rec709`, `final;
-/// Rec709; passes + CryptoObject; region 0,0,64,32`). Part of the hash, and what a manifest's
-/// `output` says.
-pub fn output_kind(shot: &Shot) -> String {
-    let out = &shot.scene().file.output;
-    let mut kind = if shot.is_preview() {
-        "preview".to_string()
-    } else {
-        "final".to_string()
-    };
-    kind.push_str(&format!("; {:?}", out.colorspace));
-    if shot.passes() {
-        // Passes frames of a nephele without the mattes said `; passes`: they are re-rendered.
-        kind.push_str("; passes + ");
-        kind.push_str(crate::render::cryptomatte::OBJECT_LAYER);
-    }
-    if let Some(r) = shot.region() {
-        kind.push_str(&format!("; {REGION} {r}"));
-    }
-    kind
+/// The check of one frame on disk against what the scene asks for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameCheck {
+    /// Frame number.
+    pub frame: u32,
+    /// The verdict.
+    pub status: FrameStatus,
+    /// The files the scene asks for.
+    pub wanted: Vec<WantedFile>,
+    /// Which of `wanted` must be written (the others are on disk and up to date).
+    pub write: Vec<bool>,
+    /// Files the last manifest lists that the scene no longer asks for (removed when the frame
+    /// is written).
+    pub stale: Vec<PathBuf>,
 }
 
-/// The hash of the shot's 0-based frame `k`, rendered with `settings` from `blobs` by `shot`
-/// (see the module doc); `voxel` is the density grids' voxel size (0 without grids).
-pub fn frame_hash(
-    shot: &Shot,
-    k: u32,
-    settings: &RenderSettings,
-    blobs: &[Blob],
-    voxel: f64,
-) -> u64 {
-    let head = format!(
-        "nephele frame; version {}; output {}; voxel {voxel:?}",
-        env!("CARGO_PKG_VERSION"),
-        output_kind(shot)
-    );
-    let time_samples = settings.quality.time_samples;
-    let settings = format!("{settings:?}");
-    let blobs = format!("{blobs:?}");
-    // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
-    // (in units per second, so the frame rate counts too).
-    let motion = match shot.prepared() {
-        Ok(prep)
-            if shot
-                .scene()
-                .file
-                .output
-                .formats
-                .contains(&super::Format::Vdb) =>
-        {
-            let plan = &prep.plan;
-            let t = plan.timeline().time(k as usize);
-            let field = crate::animate::VelocityField::of_plan(plan, t);
-            format!(
-                "fps {:?}; {:?}",
-                shot.scene().file.shot.fps,
-                field.motions()
-            )
+impl FrameCheck {
+    /// True when some file to write is made from the image (the frame must be rendered).
+    pub fn needs_render(&self) -> bool {
+        self.wanted
+            .iter()
+            .zip(&self.write)
+            .any(|(w, &go)| go && w.kind.needs_image())
+    }
+
+    /// True when nothing needs doing at all, the manifest included.
+    pub fn is_done(&self) -> bool {
+        self.status == FrameStatus::UpToDate
+    }
+}
+
+/// The files frame number `frame` of `shot` needs, with their hashes from `inputs`.
+pub fn wanted_files(shot: &Shot, frame: u32, inputs: &FrameInputs) -> Vec<WantedFile> {
+    let stem = super::files::frame_stem(shot, frame);
+    let mut kinds: Vec<FileKind> = shot
+        .scene()
+        .file
+        .output
+        .formats
+        .iter()
+        .map(|&f| FileKind::Format(f))
+        .collect();
+    if shot.options().dump_blobs {
+        kinds.push(FileKind::Blobs);
+    }
+    kinds
+        .into_iter()
+        .map(|kind| WantedFile {
+            kind,
+            path: shot.dir().join(file_name(&stem, kind)),
+            hash: inputs.file_hash(kind),
+        })
+        .collect()
+}
+
+/// `<stem>.exr`, …, `<stem>.blobs.ron`.
+pub fn file_name(stem: &str, kind: FileKind) -> String {
+    match kind {
+        FileKind::Format(f) => format!("{stem}.{}", f.extension()),
+        FileKind::Blobs => format!("{stem}.blobs.ron"),
+    }
+}
+
+/// Check frame number `frame` of `shot` on disk against `inputs` (see the module doc); with
+/// `force` every wanted file is written.
+pub fn check_frame(shot: &Shot, frame: u32, inputs: &FrameInputs, force: bool) -> FrameCheck {
+    let wanted = wanted_files(shot, frame, inputs);
+    let manifest = read_manifest(&manifest_path(shot, frame));
+    let present = wanted.iter().filter(|w| w.path.is_file()).count();
+    let all = |status| FrameCheck {
+        frame,
+        status,
+        write: vec![true; wanted.len()],
+        wanted: wanted.clone(),
+        stale: Vec::new(),
+    };
+    let m = match manifest {
+        Ok(m) => m,
+        Err(ManifestProblem::Missing) if present == 0 => return all(FrameStatus::New),
+        Err(problem) => {
+            let reason = match problem {
+                ManifestProblem::Missing => "interrupted (files without their manifest)".into(),
+                ManifestProblem::Old => {
+                    "renderer changed (a manifest of nephele before render versions)".into()
+                }
+                ManifestProblem::Unreadable(e) => format!("manifest unreadable: {e}"),
+            };
+            return all(if force {
+                FrameStatus::New
+            } else {
+                FrameStatus::OutOfDate(reason)
+            });
         }
-        _ => String::new(),
     };
-    // An open shutter renders the blobs over its time samples (nothing added when closed, so
-    // such frames keep their hashes).
-    let shutter = if shot.scene().file.shot.shutter > 0.0 {
-        format!(
-            "shutter {:?}; {:?}",
-            shot.scene().file.shot.shutter,
-            shot.shutter(k, time_samples).ok().flatten()
-        )
+    if m.frame != frame {
+        return all(FrameStatus::OutOfDate(format!(
+            "manifest unreadable: it is frame {}'s",
+            m.frame
+        )));
+    }
+    let dir = shot.dir();
+    let stale: Vec<PathBuf> = m
+        .files
+        .iter()
+        .filter(|f| !wanted.iter().any(|w| file_name_of(&w.path) == f.name))
+        .map(|f| dir.join(&f.name))
+        .collect();
+    let mut write = Vec::with_capacity(wanted.len());
+    let (mut added, mut changed, mut replaced, mut missing) = (vec![], vec![], false, false);
+    for w in &wanted {
+        let name = file_name_of(&w.path);
+        let listed = m.files.iter().find(|f| f.name == name);
+        let ok = match listed {
+            None => {
+                added.push(w.kind.key());
+                false
+            }
+            Some(f) if f.hash != hash_text(w.hash) => {
+                changed.extend(changed_components(&m, inputs, w.kind));
+                false
+            }
+            Some(f) => match std::fs::metadata(&w.path) {
+                Err(_) => {
+                    missing = true;
+                    false
+                }
+                Ok(meta) if meta.len() != f.bytes => {
+                    replaced = true;
+                    false
+                }
+                Ok(_) if w.kind == FileKind::Format(Format::Exr) => {
+                    let own = exr_hash(&w.path);
+                    if own.as_deref() != Some(f.hash.as_str()) {
+                        replaced = true;
+                    }
+                    own.as_deref() == Some(f.hash.as_str())
+                }
+                Ok(_) => true,
+            },
+        };
+        write.push(force || !ok);
+    }
+    let removed: Vec<&str> = m
+        .files
+        .iter()
+        .filter(|f| stale.iter().any(|p| file_name_of(p) == f.name))
+        .map(|f| f.kind.as_str())
+        .filter(|k| FileKind::from_key(k).is_some())
+        .collect();
+    let status = if force {
+        FrameStatus::New
+    } else if m.render_version != RENDER_VERSION {
+        FrameStatus::OutOfDate(format!(
+            "renderer changed (render version {} → {RENDER_VERSION})",
+            m.render_version
+        ))
     } else {
-        String::new()
+        let mut why = Vec::new();
+        if !changed.is_empty() {
+            changed.sort();
+            changed.dedup();
+            let labels: Vec<&str> = changed.iter().map(|c| c.label()).collect();
+            why.push(format!("changed: {}", labels.join(", ")));
+        }
+        if !added.is_empty() || !removed.is_empty() {
+            let mut f: Vec<String> = added.iter().map(|k| format!("+{k}")).collect();
+            f.extend(removed.iter().map(|k| format!("-{k}")));
+            why.push(format!("formats changed: {}", f.join(" ")));
+        }
+        if missing {
+            why.push("files missing".into());
+        }
+        if replaced {
+            why.push("files replaced since their manifest".into());
+        }
+        if why.is_empty() {
+            FrameStatus::UpToDate
+        } else {
+            FrameStatus::OutOfDate(why.join("; "))
+        }
     };
-    super::target::fnv1a(&[
-        head.as_bytes(),
-        settings.as_bytes(),
-        blobs.as_bytes(),
-        motion.as_bytes(),
-        shutter.as_bytes(),
-    ])
+    // Another render version: every file is redone, whatever its hash says.
+    let write = if m.render_version != RENDER_VERSION {
+        vec![true; wanted.len()]
+    } else {
+        write
+    };
+    FrameCheck {
+        frame,
+        status,
+        wanted,
+        write,
+        stale,
+    }
 }
 
-/// The manifest of frame number `frame`: `<name>_<frame>.manifest.json` beside its files.
+/// The components whose hashes differ between manifest `m` and `inputs`, among those a file
+/// of `kind` is made from.
+fn changed_components(m: &Manifest, inputs: &FrameInputs, kind: FileKind) -> Vec<Component> {
+    Component::of(kind)
+        .iter()
+        .copied()
+        .filter(|&c| m.inputs.get(c.key()) != Some(&hash_text(inputs.hash(c))))
+        .collect()
+}
+
+fn file_name_of(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// The `nephele/hash` string in the header of the EXR at `path`, if it has one.
+pub fn exr_hash(path: &Path) -> Option<String> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).ok()?;
+    let header = meta.headers.first()?;
+    header
+        .own_attributes
+        .other
+        .iter()
+        .find(|(k, _)| k.to_string().as_str() == "nephele/hash")
+        .and_then(|(_, v)| match v {
+            exr::meta::attribute::AttributeValue::Text(t) => Some(t.to_string()),
+            _ => None,
+        })
+}
+
+/// The manifest of frame number `frame`: `<stem>.manifest.json` beside its files.
 pub fn manifest_path(shot: &Shot, frame: u32) -> PathBuf {
     shot.dir().join(format!(
         "{}.manifest.json",
         super::files::frame_stem(shot, frame)
     ))
-}
-
-/// The manifest text of a frame.
-pub fn record_text(record: &FrameRecord) -> String {
-    // A plain struct of strings always serializes.
-    serde_json::to_string_pretty(record).unwrap_or_default() + "\n"
-}
-
-/// The record in the manifest at `path`, if it is there and readable.
-pub fn read_record(path: &Path) -> Option<FrameRecord> {
-    let text = std::fs::read_to_string(path).ok()?;
-    serde_json::from_str(&text).ok()
-}
-
-/// Whether frame number `frame` of `shot` with hash `hash` is on disk and up to date.
-pub fn status(shot: &Shot, frame: u32, hash: u64) -> FrameStatus {
-    let files = super::files::frame_paths(shot, frame);
-    let present = files.iter().filter(|p| p.is_file()).count();
-    let record = read_record(&manifest_path(shot, frame));
-    if record.is_none() && present == 0 {
-        return FrameStatus::New;
-    }
-    let Some(record) = record else {
-        return FrameStatus::OutOfDate("no manifest (rendered by an older nephele)".into());
-    };
-    if present < files.len() {
-        return FrameStatus::OutOfDate("files missing".into());
-    }
-    if record.hash == hash_text(hash) {
-        return FrameStatus::UpToDate;
-    }
-    let version = env!("CARGO_PKG_VERSION");
-    let kind = output_kind(shot);
-    FrameStatus::OutOfDate(if record.version != version {
-        format!("renderer changed ({} → {version})", record.version)
-    } else if record.output.contains(REGION) && !kind.contains(REGION) {
-        // A look test's frame is never taken for the full frame.
-        "region render".into()
-    } else if record.output != kind {
-        format!("output changed ({} → {kind})", record.output)
-    } else {
-        "scene changed".into()
-    })
 }
 
 /// A hash as written in headers and manifests: 16 lowercase hex digits.

@@ -5,6 +5,7 @@
 
 use std::time::Instant;
 
+use super::lock::FrameLock;
 use super::provenance::{self, FrameStatus};
 use super::shot::Shot;
 use super::stats::StatsBasis;
@@ -82,6 +83,18 @@ impl Shot {
         };
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
+        // The memory a frame needs, checked on the machine that renders it (a farm's head node
+        // that only loads the scene may have far less).
+        let first = self.settings(0)?;
+        crate::render::memory::check_available(first.width, first.height, &first.quality)
+            .map_err(|message| SceneError::Invalid {
+                path: self.scene().path.clone(),
+                field: "shot".into(),
+                message,
+            })?;
+        // Temporary files of frames no process is writing were left by a killed render.
+        super::lock::remove_stale_temps(self.dir(), &self.scene().name, &self.scene().path)?;
+        let film = self.film()?.clone();
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
         let mut renderer = crate::render::ShotRenderer::new();
         // A frame's files are encoded and written on their own thread while the next frame
@@ -94,29 +107,38 @@ impl Shot {
                 let k = self.index(frame);
                 let blobs = self.blobs(k)?;
                 let settings = self.settings(k)?;
-                let hash = provenance::frame_hash(self, k, &settings, &blobs, voxel);
-                let status = if opts.force {
-                    FrameStatus::New
-                } else {
-                    provenance::status(self, frame, hash)
-                };
-                let finished = status == FrameStatus::UpToDate;
+                let inputs = provenance::frame_inputs(self, k, &settings, &blobs, &film, voxel);
+                // Held from the check until the manifest is written (by the writer thread).
+                let lock = FrameLock::acquire(
+                    self.dir(),
+                    &files::frame_stem(self, frame),
+                    &self.scene().path,
+                )?;
+                let check = provenance::check_frame(self, frame, &inputs, opts.force);
+                let finished = check.is_done();
+                if let FrameStatus::OutOfDate(reason) = &check.status {
+                    match report.out_of_date.iter_mut().find(|(r, _)| r == reason) {
+                        Some((_, n)) => *n += 1,
+                        None => report.out_of_date.push((reason.clone(), 1)),
+                    }
+                }
                 // With statistics, finished frames are rendered again in memory (not written).
+                let render = check.needs_render() || (finished && opts.stats);
                 if finished && !opts.stats {
+                    drop(lock);
                     report.skipped += 1;
                     on_frame(&skipped(frame, last));
                     continue;
                 }
-                if let FrameStatus::OutOfDate(reason) = status {
-                    match report.out_of_date.iter_mut().find(|(r, _)| *r == reason) {
-                        Some((_, n)) => *n += 1,
-                        None => report.out_of_date.push((reason, 1)),
-                    }
-                }
-                let own = self.own_march(k, &settings, &blobs)?;
-                let image = match &own {
-                    Some(frame) => frame,
-                    None => renderer.render(&settings, &blobs),
+                let own;
+                let image = if render {
+                    own = self.own_march(k, &settings, &blobs)?;
+                    Some(match &own {
+                        Some(frame) => frame,
+                        None => renderer.render(&settings, &blobs),
+                    })
+                } else {
+                    None
                 };
                 let rendered = Instant::now();
                 finish_writing(&mut writing)?;
@@ -124,18 +146,21 @@ impl Shot {
                 if !finished {
                     if n + 1 < frames.len() {
                         let (image, settings, blobs) =
-                            (image.clone(), settings.clone(), blobs.clone());
+                            (image.cloned(), settings.clone(), blobs.clone());
                         // Written beside the next frame's render: sequentially, or its formats
                         // would only take the render's cores.
                         writing = Some(scope.spawn(move || {
                             let out = files::FrameOutput {
-                                image: &image,
+                                image: image.as_ref(),
                                 settings: &settings,
                                 blobs: &blobs,
                                 voxel,
-                                hash,
+                                inputs: &inputs,
+                                check: &check,
                             };
-                            files::write_frame(self, frame, &out, false)
+                            let written = files::write_frame(self, frame, &out, false);
+                            drop(lock);
+                            written
                         }));
                     } else {
                         // The last frame: nothing to overlap with, so no copy of it, and its
@@ -145,13 +170,17 @@ impl Shot {
                             settings: &settings,
                             blobs: &blobs,
                             voxel,
-                            hash,
+                            inputs: &inputs,
+                            check: &check,
                         };
                         files::write_frame(self, frame, &out, true)?;
+                        drop(lock);
                     }
+                } else {
+                    drop(lock);
                 }
                 let written_last = Instant::now();
-                if let Some(basis) = &basis {
+                if let (Some(basis), Some(image)) = (&basis, image) {
                     stats.push(basis.frame(frame, &blobs, Some(image)));
                 }
                 render_s += (rendered - start).as_secs_f64();
@@ -216,13 +245,15 @@ impl Shot {
     /// with the reason (the run's rule, for `prepare` and the farm).
     pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
         let voxel = files::grid_voxel(self)?;
+        let film = self.film()?.clone();
         self.frames()
             .iter()
             .map(|&frame| {
                 let k = self.index(frame);
-                let hash =
-                    provenance::frame_hash(self, k, &self.settings(k)?, &self.blobs(k)?, voxel);
-                Ok((frame, provenance::status(self, frame, hash)))
+                let (settings, blobs) = (self.settings(k)?, self.blobs(k)?);
+                let inputs = provenance::frame_inputs(self, k, &settings, &blobs, &film, voxel);
+                let check = provenance::check_frame(self, frame, &inputs, false);
+                Ok((frame, check.status))
             })
             .collect()
     }
