@@ -80,7 +80,10 @@ pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     ));
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        sbatch_path(&job.logs.join(format!("{}-prepare_%j.log", slurm_job_name(&job.name))))
+        sbatch_path(
+            &job.logs
+                .join(format!("{}-prepare_%j.log", slurm_job_name(&job.name)))
+        )
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -96,12 +99,18 @@ pub fn slurm_prepare_script(job: &FarmJob, sbatch_args: &[String]) -> String {
 /// `--dependency=afterok:<prepare job id>`.
 pub fn slurm_array_script(job: &FarmJob, sbatch_args: &[String]) -> String {
     let mut s = slurm_header(job);
-    s.push_str(&format!("#SBATCH --job-name={}\n", slurm_job_name(&job.name)));
+    s.push_str(&format!(
+        "#SBATCH --job-name={}\n",
+        slurm_job_name(&job.name)
+    ));
     s.push_str(&format!("#SBATCH --array=0-{}\n", job.tasks - 1));
     s.push_str("#SBATCH --requeue\n#SBATCH --open-mode=append\n");
     s.push_str(&format!(
         "#SBATCH --output={}\n",
-        sbatch_path(&job.logs.join(format!("{}_%A_%a.log", slurm_job_name(&job.name))))
+        sbatch_path(
+            &job.logs
+                .join(format!("{}_%A_%a.log", slurm_job_name(&job.name)))
+        )
     ));
     s.push_str(&extra_lines(sbatch_args));
     s.push_str("\nset -eu\n");
@@ -406,7 +415,10 @@ mod tests {
         let bad = ["--comment=x\necho INJECTED".to_string()];
         let e = check_sbatch_args(&bad).unwrap_err();
         assert!(e.contains("control character"), "{e}");
-        for s in [slurm_array_script(&job(), &bad), slurm_prepare_script(&job(), &bad)] {
+        for s in [
+            slurm_array_script(&job(), &bad),
+            slurm_prepare_script(&job(), &bad),
+        ] {
             assert!(!s.contains("INJECTED"), "{s}");
         }
         assert!(check_sbatch_args(&["--comment=\"x\"".into()]).is_err());
@@ -430,7 +442,10 @@ mod tests {
         // One function names both jobs: `shot_` is `shot` and `shot-prepare`, and a long name
         // keeps its prepare job within Kubernetes' 63 characters.
         let names = k8s_job_names("shot_");
-        assert_eq!((names.render.as_str(), names.prepare.as_str()), ("shot", "shot-prepare"));
+        assert_eq!(
+            (names.render.as_str(), names.prepare.as_str()),
+            ("shot", "shot-prepare")
+        );
         let long = k8s_job_names(&"a".repeat(60));
         assert_eq!(long.render.len(), 55);
         assert_eq!(long.prepare, format!("{}-prepare", long.render));

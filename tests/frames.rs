@@ -90,7 +90,7 @@ fn channels(path: &Path) -> BTreeMap<String, Vec<f32>> {
         .collect()
 }
 
-/// The frame numbers whose manifest is in `dir`, with their hash.
+/// The frame numbers whose manifest is in `dir`, with their files' hashes.
 fn manifests(dir: &Path) -> BTreeMap<u32, String> {
     std::fs::read_dir(dir)
         .unwrap()
@@ -101,10 +101,13 @@ fn manifests(dir: &Path) -> BTreeMap<u32, String> {
         .map(|name| {
             let v: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join(&name)).unwrap()).unwrap();
-            (
-                v["frame"].as_u64().unwrap() as u32,
-                v["hash"].as_str().unwrap().to_string(),
-            )
+            let hashes: Vec<&str> = v["files"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|f| f["hash"].as_str().unwrap())
+                .collect();
+            (v["frame"].as_u64().unwrap() as u32, hashes.join(" "))
         })
         .collect()
 }
@@ -255,7 +258,7 @@ fn a_scene_edit_rerenders_exactly_the_frames_it_changes() {
     );
     assert!(
         t.contains(&format!(
-            "{n} of the rendered frames were out of date: {n} scene changed"
+            "{n} of the rendered frames were out of date: {n} changed: cloud shape (blobs)"
         )),
         "{t}"
     );
@@ -265,7 +268,7 @@ fn a_scene_edit_rerenders_exactly_the_frames_it_changes() {
     let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr"]));
     assert!(t.contains("2 frames rendered, 10 already done"), "{t}");
     assert!(
-        t.contains("1 no manifest (rendered by an older nephele)") && t.contains("1 files missing"),
+        t.contains("1 interrupted (files without their manifest)") && t.contains("1 files missing"),
         "{t}"
     );
     let t = run(nephele(&dir).args(["render", "m.ron", "--formats", "exr", "--force"]));
@@ -366,7 +369,7 @@ fn exr_frames_carry_colour_and_rate_and_acescg_is_the_exact_conversion() {
         std::fs::read(dir.join("rec/c_0003.png")).unwrap(),
         std::fs::read(dir.join("aces/c_0003.png")).unwrap()
     );
-    // Switching the colour space is an output change: the frame is redone and it says so.
+    // Switching the colour space changes the EXR only: it is redone and says so, the PNG kept.
     std::fs::copy(&rec, &aces).unwrap();
     std::fs::copy(
         dir.join("rec/c_0003.manifest.json"),
@@ -375,7 +378,7 @@ fn exr_frames_carry_colour_and_rate_and_acescg_is_the_exact_conversion() {
     .unwrap();
     let t = run(nephele(&dir).args(["render", "a.ron", "--frames", "3"]));
     assert!(
-        t.contains("1 output changed (final; Rec709 → final; ACEScg)"),
+        t.contains("1 changed: EXR header (scene, seed, colour space, fps)"),
         "{t}"
     );
     if let Some(info) = oiiotool_info(&aces) {
@@ -396,7 +399,7 @@ fn exr_frames_carry_colour_and_rate_and_acescg_is_the_exact_conversion() {
 #[test]
 fn bad_input_is_refused_before_any_work_with_each_cause_once() {
     let dir = temp_dir("bad");
-    write_scene(&dir, "huge", "fps: 1e9, seconds: 1e9", "");
+    write_scene(&dir, "huge", "fps: 1000, seconds: 1e9", "");
     let t = fails(nephele(&dir).args(["render", "huge.ron"]));
     assert!(
         t.contains("huge.ron: shot: ") && t.contains("more than the limit of 1000000"),
@@ -611,12 +614,23 @@ fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
                  output: (dir: \"out\", formats: [Exr, Png], passes: true)";
     write_scene(&dir, "c", shot, extra);
     let region = ["--region", "5,3,37,20"];
-    run(nephele(&dir).args(["render", "c.ron", "--frames", "3", "--output", "full"]));
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "3"]));
+    let (full, part) = (
+        dir.join("out/c_0003.exr"),
+        dir.join("out/c_0003.region.exr"),
+    );
+    let finished = std::fs::read(&full).unwrap();
+    // A look test over a finished frame goes beside it, under its own name.
     let t = run(nephele(&dir)
         .args(["render", "c.ron", "--frames", "3"])
         .args(region));
     assert!(t.contains("1 frames rendered"), "{t}");
-    let (full, part) = (dir.join("full/c_0003.exr"), dir.join("out/c_0003.exr"));
+    assert_eq!(
+        std::fs::read(&full).unwrap(),
+        finished,
+        "the frame is untouched"
+    );
+    assert!(dir.join("out/c_0003.region.manifest.json").is_file());
     let (display, data, got) = windows_and_channels(&part);
     assert_eq!(
         display,
@@ -640,8 +654,10 @@ fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
     }
     assert!(cloud > 50, "the region shows cloud ({cloud} pixels)");
     // The PNG: full size, the full frame's pixels inside the region, transparent outside.
-    let png = image::open(dir.join("out/c_0003.png")).unwrap().to_rgba8();
-    let whole = image::open(dir.join("full/c_0003.png")).unwrap().to_rgb8();
+    let png = image::open(dir.join("out/c_0003.region.png"))
+        .unwrap()
+        .to_rgba8();
+    let whole = image::open(dir.join("out/c_0003.png")).unwrap().to_rgb8();
     assert_eq!(png.dimensions(), (48, 27));
     for (x, y, p) in png.enumerate_pixels() {
         if (5..37).contains(&x) && (3..20).contains(&y) {
@@ -660,21 +676,14 @@ fn a_region_renders_the_full_frames_pixels_and_a_full_render_redoes_it() {
             assert!(info.contains(line), "oiiotool: missing {line:?} in\n{info}");
         }
     }
-    // The same region again is up to date; the full frame is not taken for done.
+    // The same region again is up to date, and so is the full frame beside it.
     let t = run(nephele(&dir)
         .args(["render", "c.ron", "--frames", "3"])
         .args(region));
     assert!(t.contains("0 frames rendered, 1 already done"), "{t}");
     let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "3"]));
-    assert!(
-        t.contains("1 frames rendered") && t.contains("1 region render"),
-        "{t}"
-    );
-    assert_eq!(
-        channels(&part),
-        all,
-        "the full render replaced the region's frame"
-    );
+    assert!(t.contains("0 frames rendered, 1 already done"), "{t}");
+    assert_eq!(channels(&full), all);
     // Bad regions: located errors, exit 1, nothing written.
     for (bad, says) in [
         ("5,3,37", "is not x0,y0,x1,y1"),

@@ -198,6 +198,8 @@ fn out_of_range_values_name_the_field() {
     let cases = [
         ("zero-width", "shot: (width: 0)", "shot"),
         ("zero-fps", "shot: (fps: 0.0)", "shot.fps"),
+        ("tiny-fps", "shot: (fps: 1e-9)", "shot.fps"),
+        ("huge-fps", "shot: (fps: 1e6)", "shot.fps"),
         ("neg-seconds", "shot: (seconds: -1.0)", "shot.seconds"),
         ("empty-range", "frames: (5, 2)", "frames"),
         ("past-end", "frames: (1, 500)", "frames"),
@@ -365,12 +367,61 @@ fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
     shot.render_frame(k).unwrap()
 }
 
+/// The seeded frames' pinned hashes: (test, animation, FNV-1a of the frame's bits).
+const PINNED_FRAMES: [(&str, &str, u64); 2] = [
+    ("hash-agg", "Aggregation(())", 18333557314761046391u64),
+    ("hash-dif", "Diffusion(())", 1578149716691403766u64),
+];
+
+/// Every render version with the fingerprint of [`PINNED_FRAMES`] it was pinned with, oldest
+/// first. When a change moves the pinned hashes, raise `nephele::RENDER_VERSION` and append a
+/// row here (resumed shots then re-render frames of the older renderer).
+const RENDER_VERSIONS: [(u32, u64); 1] = [(1, 0x8bed_76dd_4500_a4c5)];
+
+/// FNV-1a over the pinned hashes.
+fn pinned_fingerprint() -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for (_, _, pinned) in PINNED_FRAMES {
+        for b in pinned.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+#[test]
+fn pinned_hashes_move_only_with_the_render_version() {
+    let (version, fingerprint) = *RENDER_VERSIONS.last().unwrap();
+    assert_eq!(
+        pinned_fingerprint(),
+        fingerprint,
+        "the pinned frame hashes changed: raise nephele::RENDER_VERSION to {} and append \
+         ({}, {:#x}) to RENDER_VERSIONS",
+        version + 1,
+        version + 1,
+        pinned_fingerprint()
+    );
+    assert_eq!(
+        nephele::RENDER_VERSION,
+        version,
+        "RENDER_VERSIONS' last row"
+    );
+    for w in RENDER_VERSIONS.windows(2) {
+        assert!(w[0].0 < w[1].0, "render versions only go up");
+    }
+    let mut seen: Vec<u64> = RENDER_VERSIONS.iter().map(|r| r.1).collect();
+    seen.sort();
+    seen.dedup();
+    assert_eq!(
+        seen.len(),
+        RENDER_VERSIONS.len(),
+        "a version per pinned state"
+    );
+}
+
 #[test]
 fn seeded_frames_have_pinned_hashes() {
-    for (name, anim, pinned) in [
-        ("hash-agg", "Aggregation(())", 18333557314761046391u64),
-        ("hash-dif", "Diffusion(())", 1578149716691403766u64),
-    ] {
+    for (name, anim, pinned) in PINNED_FRAMES {
         let a = render_tiny(name, anim, 4);
         let b = render_tiny(name, anim, 4);
         assert_eq!((a.width, a.height), (64, 36));

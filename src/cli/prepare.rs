@@ -42,6 +42,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         TargetOrigin::Cached(p) => eprintln!("target already cached in {}", p.display()),
         TargetOrigin::ModelFile(p) => eprintln!("target is the model file {}", p.display()),
     }
+    let removed = shot.remove_stale_temps()?;
+    if removed > 0 {
+        eprintln!("removed {removed} temporary files left by killed renders");
+    }
     // The render's own rule: how many of the frames a render would skip, and why not the rest.
     let statuses = shot.statuses()?;
     let done = statuses

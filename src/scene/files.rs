@@ -5,8 +5,10 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use super::provenance::{
+    self, FileKind, FrameCheck, FrameInputs, ListedFile, Manifest, WantedFile,
+};
 use super::shot::Shot;
-use super::provenance::{self, FileKind, FrameCheck, FrameInputs, ListedFile, Manifest, WantedFile};
 use super::{Format, SceneError};
 use crate::blobby::Blob;
 use crate::render::{self, RenderSettings};

@@ -137,7 +137,9 @@ pub fn temp_stem<'a>(file_name: &'a str, name: &str) -> Option<&'a str> {
     if token.is_empty() || !token.chars().all(|c| c.is_ascii_digit() || c == '-') {
         return None;
     }
-    let ext = FRAME_FILES.iter().find(|e| body.ends_with(&format!(".{e}")))?;
+    let ext = FRAME_FILES
+        .iter()
+        .find(|e| body.ends_with(&format!(".{e}")))?;
     let stem = &body[..body.len() - ext.len() - 1];
     let number = stem.strip_prefix(name)?.strip_prefix('_')?;
     let digits = number.strip_suffix(".region").unwrap_or(number);
@@ -216,7 +218,10 @@ mod tests {
         // flock locks belong to the open file, so a second open in this process is refused too.
         let e = FrameLock::acquire(&dir, "s_0001", scene).unwrap_err();
         let text = e.to_string();
-        assert!(text.contains(&format!("process {}", std::process::id())), "{text}");
+        assert!(
+            text.contains(&format!("process {}", std::process::id())),
+            "{text}"
+        );
         assert!(text.contains("a.ron"), "{text}");
         drop(held);
         assert!(!lock_path(&dir, "s_0001").exists());

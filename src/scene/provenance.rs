@@ -206,9 +206,12 @@ pub fn frame_inputs(
         e.finish()
     };
     let mut hashes = BTreeMap::new();
-    hashes.insert(Component::Renderer, hash(&|e| {
-        e.str("render version").put(&RENDER_VERSION);
-    }));
+    hashes.insert(
+        Component::Renderer,
+        hash(&|e| {
+            e.str("render version").put(&RENDER_VERSION);
+        }),
+    );
     let RenderSettings {
         width,
         height,
@@ -223,22 +226,31 @@ pub fn frame_inputs(
         quality,
         base,
     } = settings;
-    hashes.insert(Component::Image, hash(&|e| {
-        e.put(width)
-            .put(height)
-            .put(exposure)
-            .put(length_scale)
-            .put(seed)
-            .put(time)
-            .put(quality);
-    }));
+    hashes.insert(
+        Component::Image,
+        hash(&|e| {
+            e.put(width)
+                .put(height)
+                .put(exposure)
+                .put(length_scale)
+                .put(seed)
+                .put(time)
+                .put(quality);
+        }),
+    );
     hashes.insert(Component::Camera, camera.canonical_hash());
-    hashes.insert(Component::Light, hash(&|e| {
-        e.put(sun).put(sky);
-    }));
-    hashes.insert(Component::Look, hash(&|e| {
-        e.put(cloud).put(base).put(length_scale);
-    }));
+    hashes.insert(
+        Component::Light,
+        hash(&|e| {
+            e.put(sun).put(sky);
+        }),
+    );
+    hashes.insert(
+        Component::Look,
+        hash(&|e| {
+            e.put(cloud).put(base).put(length_scale);
+        }),
+    );
     hashes.insert(Component::Blobs, blobs.canonical_hash());
     hashes.insert(Component::Film, film.canonical_hash());
     // An open shutter renders the blobs over its time samples.
@@ -247,9 +259,12 @@ pub fn frame_inputs(
     } else {
         None
     };
-    hashes.insert(Component::Shutter, hash(&|e| {
-        e.put(&file.shot.shutter).put(&shutter);
-    }));
+    hashes.insert(
+        Component::Shutter,
+        hash(&|e| {
+            e.put(&file.shot.shutter).put(&shutter);
+        }),
+    );
     // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
     // (in units per second, so the frame rate counts too), and UUIDs from the seed and frame.
     let motions = if file.output.formats.contains(&Format::Vdb) {
@@ -264,25 +279,31 @@ pub fn frame_inputs(
         None
     };
     let frame = shot.number(k);
-    hashes.insert(Component::Grid, hash(&|e| {
-        e.put(&voxel)
-            .put(&motions)
-            .put(&file.shot.fps)
-            .put(&file.seed)
-            .put(&frame);
-    }));
+    hashes.insert(
+        Component::Grid,
+        hash(&|e| {
+            e.put(&voxel)
+                .put(&motions)
+                .put(&file.shot.fps)
+                .put(&file.seed)
+                .put(&frame);
+        }),
+    );
     let meta = super::files::header_strings(shot, frame, 0);
-    hashes.insert(Component::Header, hash(&|e| {
-        for (k, v) in &meta {
-            // The hash itself is written after it is known.
-            if k != "hash" {
-                e.str(k).str(v);
+    hashes.insert(
+        Component::Header,
+        hash(&|e| {
+            for (k, v) in &meta {
+                // The hash itself is written after it is known.
+                if k != "hash" {
+                    e.str(k).str(v);
+                }
             }
-        }
-        let (num, den) = crate::render::output::fps_rational(file.shot.fps);
-        e.put(&num).put(&den).put(&file.shot.fps);
-        e.put(&(file.output.colorspace as u8));
-    }));
+            let (num, den) = crate::render::output::fps_rational(file.shot.fps);
+            e.put(&num).put(&den).put(&file.shot.fps);
+            e.put(&(file.output.colorspace as u8));
+        }),
+    );
     FrameInputs { hashes }
 }
 

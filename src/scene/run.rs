@@ -86,14 +86,15 @@ impl Shot {
         // The memory a frame needs, checked on the machine that renders it (a farm's head node
         // that only loads the scene may have far less).
         let first = self.settings(0)?;
-        crate::render::memory::check_available(first.width, first.height, &first.quality)
-            .map_err(|message| SceneError::Invalid {
+        crate::render::memory::check_available(first.width, first.height, &first.quality).map_err(
+            |message| SceneError::Invalid {
                 path: self.scene().path.clone(),
                 field: "shot".into(),
                 message,
-            })?;
+            },
+        )?;
         // Temporary files of frames no process is writing were left by a killed render.
-        super::lock::remove_stale_temps(self.dir(), &self.scene().name, &self.scene().path)?;
+        self.remove_stale_temps()?;
         let film = self.film()?.clone();
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
         let mut renderer = crate::render::ShotRenderer::new();
@@ -239,6 +240,12 @@ impl Shot {
                 None
             },
         )
+    }
+
+    /// Remove the temporary files that killed renders left in the frames folder (those of
+    /// frames no running render holds; [`super::lock::remove_stale_temps`]); returns how many.
+    pub fn remove_stale_temps(&self) -> Result<usize, SceneError> {
+        super::lock::remove_stale_temps(self.dir(), &self.scene().name, &self.scene().path)
     }
 
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
