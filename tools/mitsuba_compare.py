@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Render nephele's density grid in Mitsuba 3 and compare with nephele's own frames.
 
-Input: a folder written by `tests/mitsuba.rs` (see its module doc):
+Input: a folder written by `tests/it/mitsuba.rs` (see its module doc):
   meta.json       camera, sun, phase function, nephele's times
   grid.vol        the volume export's Mitsuba grid: extinction per world unit, with its box
   sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb)

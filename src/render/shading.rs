@@ -215,7 +215,7 @@ pub const SKY_PHASE: f32 = 0.64;
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
 /// fitted with [`MS_ANISOTROPY`] against Mitsuba's full transport of a side-lit and a backlit
-/// shot together (README, `tests/mitsuba.rs`).
+/// shot together (README, `tests/it/mitsuba.rs`).
 pub const MS_CONTRIBUTION: f32 = 0.85;
 /// Anisotropy factor `c` of each further octave. Multiply scattered light in a forward-peaked
 /// cloud stays forward-peaked: with `c = ½` a backlit cloud came out 21 % too dark.

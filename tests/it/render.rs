@@ -1,15 +1,15 @@
 //! Renderer tests: analytic media against closed forms, determinism across thread counts, the
 //! EXR round trip, and (ignored) the speed benchmark and the look check.
 //!
-//! Benchmark: `cargo test --release --test render -- --ignored --nocapture bench` (times, bytes
+//! Benchmark: `cargo test --release --test it -- --ignored --nocapture render::bench` (times, bytes
 //! allocated, light-grid nodes); with `--features counters` it also counts the frame's work
 //! (density samples, hits visited, noise stacks, shaded samples; `nephele::render::counters`).
-//! Look:      `cargo test --release --test render -- --ignored --nocapture look` (PNGs in /tmp)
+//! Look:      `cargo test --release --test it -- --ignored --nocapture render::look` (PNGs in /tmp)
 
-mod exr_support;
+use crate::exr_support;
 
-mod builtin_scenes;
-mod look_support;
+use crate::builtin_scenes;
+use crate::look_support;
 use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod cli_support;
+use crate::cli_support;
 
 use cli_support::{nephele_in as bin, run, succeeded as ok};
 use nephele::scene::chunk::ARRAY_INDEX_VARS;

@@ -2,7 +2,7 @@
 //! cloud through an open shutter, a frame that holds in one part and moves in another, and bad
 //! shutters in a scene file.
 
-mod temp_support;
+use crate::temp_support;
 
 use glam::{DQuat, DVec3, Vec3};
 use nephele::blobby::Blob;

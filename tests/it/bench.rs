@@ -4,8 +4,8 @@
 //! one table.
 //!
 //! ```text
-//! cargo test --release --test bench -- --ignored --nocapture
-//! NEPHELE_BENCH_MODELS=bunny,horse NEPHELE_BENCH_BLOBS=100,300 cargo test --release --test bench -- --ignored --nocapture
+//! cargo test --release --test it -- --ignored --nocapture bench::
+//! NEPHELE_BENCH_MODELS=bunny,horse NEPHELE_BENCH_BLOBS=100,300 cargo test --release --test it -- --ignored --nocapture bench::
 //! ```
 //! Environment: `NEPHELE_BENCH_MODELS` (file stems, default bunny,horse,armadillo,cow,fertility,
 //! knight), `NEPHELE_BENCH_BLOBS` (default 100,300,1000), `NEPHELE_BENCH_RESOLUTION`
@@ -167,7 +167,7 @@ fn run_one(
 }
 
 #[test]
-#[ignore = "benchmark: cargo test --release --test bench -- --ignored --nocapture"]
+#[ignore = "benchmark: cargo test --release --test it -- --ignored --nocapture bench::"]
 fn fit_and_evaluate_every_model() {
     let dir = Path::new(MODELS_DIR);
     if !dir.exists() {

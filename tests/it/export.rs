@@ -2,8 +2,8 @@
 //! python with Debian's `python3-openvdb`; skipped with a message where it is missing), the
 //! Mitsuba `.vol` layout, and the grid against the renderer's density.
 
-mod exr_support;
-mod temp_support;
+use crate::exr_support;
+use crate::temp_support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -652,7 +652,7 @@ fn render_formats_flag_writes_the_grids() {
 
 /// Benchmark (ignored): per-frame density grid, VDB encoding and atomic write at the default
 /// voxel size (target diagonal / 256) on the shipped duck scenes.
-/// `cargo test --release --test export -- --ignored --nocapture bench`
+/// `cargo test --release --test it -- --ignored --nocapture export::bench`
 #[test]
 #[ignore]
 fn bench_duck_vdb_frames() {

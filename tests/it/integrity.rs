@@ -6,7 +6,7 @@
 //! a child stopped at a chosen point by its test hook (`NEPHELE_TEST_HOOK`) and killed by PID.
 //! Every scene is the procedural `builtin:cumulus` at a few dozen pixels.
 
-mod cli_support;
+use crate::cli_support;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -409,7 +409,7 @@ fn parse_mesh_bytes_matches_read_mesh() {
 }
 
 /// Read speed of the two big PLY models (best of 5, release build):
-/// `cargo test --release --test mesh_io read_speed -- --ignored --nocapture`.
+/// `cargo test --release --test it -- --ignored --nocapture mesh_io::read_speed`.
 #[test]
 #[ignore = "timing; run alone in release"]
 fn read_speed() {

@@ -5,8 +5,8 @@
 //! `oiiotool --info -v` (Debian `openimageio-tools`; the check says it skipped when absent).
 //! Every scene is the procedural `builtin:cumulus` at a few dozen pixels.
 
-mod cli_support;
-mod exr_support;
+use crate::cli_support;
+use crate::exr_support;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

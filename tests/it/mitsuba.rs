@@ -10,7 +10,7 @@
 //! Always-run test: a small comparison when Python with `mitsuba` is importable (set
 //! `NEPHELE_PYTHON` to pick the interpreter), otherwise it prints that it skipped.
 //! Full comparison (documented in the README):
-//! `cargo test --release --test mitsuba -- --ignored --nocapture mitsuba_full`
+//! `cargo test --release --test it -- --ignored --nocapture mitsuba::mitsuba_full`
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
 //! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells along the cloud's
 //! longest side, 1,024, fewer where a `.vol` file's 2²⁸ voxels cannot hold them),

@@ -5,8 +5,8 @@ use glam::DVec3;
 use nephele::eval::{MetroConfig, compare, metro::area_samples};
 use nephele::mesh::Mesh;
 
-mod eval_support;
-mod shared_models;
+use crate::eval_support;
+use crate::shared_models;
 use eval_support::icosphere;
 
 fn scaled(m: &Mesh, k: f64, about: DVec3) -> Mesh {

@@ -1,6 +1,6 @@
 //! Builtin shapes: closed, outward, valid, analytic volumes, fast.
 
-mod mesh_checks;
+use crate::mesh_checks;
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -162,7 +162,7 @@ fn render_view(mesh: &Mesh, yaw: f64, pitch: f64, size: u32, color: [f64; 3]) ->
 }
 
 /// Sanity pictures of the figures in /tmp (side, three-quarter, front, back): run with
-/// `cargo test --release --test builtin -- --ignored`.
+/// `cargo test --release --test it -- --ignored builtin::`.
 #[test]
 #[ignore]
 fn render_figures_to_tmp() {

@@ -1,7 +1,7 @@
 //! Ellipsoid decomposition end to end on generated meshes (spheres, ellipsoids, two separated
 //! ellipsoids), plus the bunny through the fit pipeline when `../shared/models` is present.
 
-mod shared_models;
+use crate::shared_models;
 
 use glam::{DQuat, DVec3};
 use nephele::decompose::{self, Candidate, DecomposeConfig, ObstacleShift, Primitive};

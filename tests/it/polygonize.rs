@@ -1,6 +1,6 @@
 //! Marching cubes and blob polygonization: closed, outward, accurate, deterministic.
 
-mod mesh_checks;
+use crate::mesh_checks;
 
 use std::f64::consts::PI;
 use std::time::Instant;

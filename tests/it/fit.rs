@@ -5,7 +5,7 @@
 //! describes, a mesh enclosing no volume is refused; and the full optimiser's bars on the
 //! bunny and the open bunny scan when `../shared/models` is present.
 
-mod shared_models;
+use crate::shared_models;
 
 use nephele::blobby::fit::FaithfulConfig;
 use nephele::pipeline::{FitConfig, Optimisation, fit};

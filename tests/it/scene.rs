@@ -2,7 +2,7 @@
 //! `nephele render` command's exit status; rendering (pinned frame hashes, resume) once the
 //! renderer is in.
 
-mod temp_support;
+use crate::temp_support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

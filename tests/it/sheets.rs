@@ -4,9 +4,9 @@
 //! `../shared/models`) are skipped with a message. Re-run after changing the look or the
 //! animation:
 //!
-//! `cargo test --release --test sheets -- --ignored --nocapture` (`NEPHELE_SHEETS=a,b`: only those scenes)
+//! `cargo test --release --test it -- --ignored --nocapture sheets::` (`NEPHELE_SHEETS=a,b`: only those scenes)
 
-mod builtin_scenes;
+use crate::builtin_scenes;
 
 use std::path::Path;
 

@@ -5,12 +5,12 @@
 //! Always run: the final frames at the scenes' own size (`cumulus_outline_and_target_silhouette`:
 //! IoU ≥ 0.8 and an outline excess ≥ 1.15 times the model's).
 //! The full table at the scenes' own size:
-//! `cargo test --release --test look -- --ignored --nocapture look_table` (with
+//! `cargo test --release --test it -- --ignored --nocapture look::look_table` (with
 //! `NEPHELE_LOOK_DIR=DIR` it also writes the frames there as PNG; `NEPHELE_LOOK_SCENES=a,b`
 //! limits it to those scenes, `NEPHELE_LOOK_FINAL=1` to the final frames, `NEPHELE_LOOK_FRAMES=12,36` to those frames).
 
-mod builtin_scenes;
-mod look_support;
+use crate::builtin_scenes;
+use crate::look_support;
 
 use look_support::{Mask, iou, model_mask, outline_excess};
 use nephele::render::render_frame;

@@ -8,7 +8,7 @@ use nephele::blobby::codec::{self, Encoding, QUANTIZED_BLOB_BYTES};
 use nephele::blobby::{Blob, BlobField, BlobModel, ModelError};
 use nephele::geometry::Aabb;
 
-mod eval_support;
+use crate::eval_support;
 use eval_support::model;
 
 fn path() -> &'static Path {
