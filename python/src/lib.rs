@@ -81,24 +81,35 @@ fn scene_err(e: CoreSceneError) -> PyErr {
     Python::attach(|py| {
         let msg = message(&e);
         let none = || py.None();
-        let (path, line, column, field): (Py<PyAny>, Py<PyAny>, Py<PyAny>, Py<PyAny>) = match &e
-        {
+        let (path, line, column, field): (Py<PyAny>, Py<PyAny>, Py<PyAny>, Py<PyAny>) = match &e {
             CoreSceneError::Parse {
                 path, line, column, ..
             } => (
-                path.to_string_lossy().into_pyobject(py).unwrap().into_any().unbind(),
+                path.to_string_lossy()
+                    .into_pyobject(py)
+                    .unwrap()
+                    .into_any()
+                    .unbind(),
                 line.into_pyobject(py).unwrap().into_any().unbind(),
                 column.into_pyobject(py).unwrap().into_any().unbind(),
                 none(),
             ),
             CoreSceneError::Invalid { path, field, .. } => (
-                path.to_string_lossy().into_pyobject(py).unwrap().into_any().unbind(),
+                path.to_string_lossy()
+                    .into_pyobject(py)
+                    .unwrap()
+                    .into_any()
+                    .unbind(),
                 none(),
                 none(),
                 field.into_pyobject(py).unwrap().into_any().unbind(),
             ),
             CoreSceneError::Io { path, .. } => (
-                path.to_string_lossy().into_pyobject(py).unwrap().into_any().unbind(),
+                path.to_string_lossy()
+                    .into_pyobject(py)
+                    .unwrap()
+                    .into_any()
+                    .unbind(),
                 none(),
                 none(),
                 none(),
@@ -108,7 +119,12 @@ fn scene_err(e: CoreSceneError) -> PyErr {
             | CoreSceneError::Fit { scene, .. }
             | CoreSceneError::Model { scene, .. }
             | CoreSceneError::Animate { scene, .. } => (
-                scene.to_string_lossy().into_pyobject(py).unwrap().into_any().unbind(),
+                scene
+                    .to_string_lossy()
+                    .into_pyobject(py)
+                    .unwrap()
+                    .into_any()
+                    .unbind(),
                 none(),
                 none(),
                 none(),
@@ -619,7 +635,10 @@ impl Shot {
             flat.extend_from_slice(&convert(rgb, space));
             flat.push(*a);
         }
-        out.set_item("rgba", numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 4])?)?;
+        out.set_item(
+            "rgba",
+            numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 4])?,
+        )?;
         out.set_item(
             "depth",
             numpy_array(py, &f32_bytes(&image.depth), "float32", vec![h, w])?,
@@ -627,7 +646,10 @@ impl Shot {
         if let Some(p) = &image.passes {
             for (name, layer) in [("sun", &p.sun), ("sky", &p.sky), ("multiple", &p.multiple)] {
                 let flat: Vec<f32> = layer.iter().flat_map(|c| convert(c, space)).collect();
-                out.set_item(name, numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 3])?)?;
+                out.set_item(
+                    name,
+                    numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 3])?,
+                )?;
             }
         }
         Ok(out)
