@@ -1,0 +1,104 @@
+"""nephele for Blender: turn the selected mesh into a nephele cloud shot and bring its VDB
+frames back as a Volume object (grids `density` and `vel`), with nephele's camera.
+
+Object menu (3D Viewport) > "Nephele Cloud from Mesh". The work is in `core.py`.
+"""
+
+bl_info = {
+    "name": "nephele clouds",
+    "author": "nephele",
+    "version": (0, 1, 0),
+    "blender": (4, 2, 0),
+    "location": "3D Viewport > Object > Nephele Cloud from Mesh",
+    "description": "Render the selected mesh as a nephele cloud shot (VDB) and import it as a Volume",
+    "category": "Import-Export",
+}
+
+import bpy  # noqa: E402
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty  # noqa: E402
+
+from . import core  # noqa: E402
+
+
+class NepheleAddonPreferences(bpy.types.AddonPreferences):
+    bl_idname = __package__
+
+    binary: StringProperty(
+        name="nephele binary",
+        description="Path of the nephele CLI (empty: $NEPHELE_BIN, then `nephele` on PATH). "
+        "Not used when the nephele Python module is installed in Blender's Python",
+        subtype="FILE_PATH",
+        default="",
+    )
+
+    def draw(self, context):
+        self.layout.prop(self, "binary")
+
+
+class OBJECT_OT_nephele_cloud(bpy.types.Operator):
+    """Fit the active mesh with nephele, render its cloud shot to VDB frames and import them"""
+
+    bl_idname = "object.nephele_cloud"
+    bl_label = "Nephele Cloud from Mesh"
+    bl_options = {"REGISTER", "UNDO"}
+
+    output: StringProperty(name="Output folder", subtype="DIR_PATH", default="//nephele/")
+    blobs: IntProperty(name="Blobs", default=300, min=4, max=3000)
+    animation: EnumProperty(name="Animation", items=[
+        ("Diffusion", "Diffusion", "A cloud spreads out of one piece into the shape"),
+        ("Aggregation", "Aggregation", "Scattered puffs gather into the shape"),
+    ])
+    seconds: FloatProperty(name="Seconds", default=4.0, min=0.05)
+    shutter: FloatProperty(name="Shutter", description="Open shutter, a fraction of a frame "
+                           "(motion blur in nephele and in Blender)", default=0.5, min=0.0, max=1.0)
+    voxels: IntProperty(name="Voxels across", description="Grid voxels across the mesh's "
+                        "bounding-box diagonal", default=256, min=16, max=1024)
+    quality: EnumProperty(name="Quality", items=[(q, q, "") for q in ("Preview", "Final", "Production")],
+                          default="Preview")
+    camera: BoolProperty(name="nephele camera", description="Also import nephele's camera "
+                         "(from its EXR frames) and make it the scene camera", default=True)
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def execute(self, context):
+        scene = context.scene
+        prefs = context.preferences.addons[__package__].preferences if __package__ in context.preferences.addons else None
+        settings = core.ShotSettings(
+            blobs=self.blobs, animation=self.animation, seconds=self.seconds,
+            fps=scene.render.fps / scene.render.fps_base, start_frame=scene.frame_start,
+            width=scene.render.resolution_x, height=scene.render.resolution_y,
+            shutter=self.shutter, quality=self.quality, voxels_per_diagonal=self.voxels,
+            extra_formats=["Exr"] if self.camera else [],
+        )
+        try:
+            volume, _, scene_path = core.make_cloud(
+                context.active_object, self.output, settings,
+                binary=prefs.binary if prefs else None, with_camera=self.camera,
+                progress=lambda line: print("nephele:", line))
+        except (RuntimeError, ValueError, OSError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        scene.frame_end = scene.frame_start + max(1, round(settings.seconds * settings.fps)) - 1
+        self.report({"INFO"}, f"{volume.name}: from {scene_path}")
+        return {"FINISHED"}
+
+
+def menu(self, context):
+    self.layout.operator(OBJECT_OT_nephele_cloud.bl_idname)
+
+
+classes = (NepheleAddonPreferences, OBJECT_OT_nephele_cloud)
+
+
+def register():
+    for c in classes:
+        bpy.utils.register_class(c)
+    bpy.types.VIEW3D_MT_object.append(menu)
+
+
+def unregister():
+    bpy.types.VIEW3D_MT_object.remove(menu)
+    for c in reversed(classes):
+        bpy.utils.unregister_class(c)

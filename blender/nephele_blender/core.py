@@ -1,0 +1,345 @@
+"""The add-on's work, usable without its UI: export a mesh, write a nephele scene, render it
+(the `nephele` CLI or the `nephele` Python module), and bring the VDB frames back as a Volume.
+
+Axes: nephele is Y-up, Blender Z-up. A Blender point (x, y, z) is written to nephele as
+(x, z, -y) (`to_nephele`); nephele's grids come back under an object rotated +90° about X, which
+maps nephele (x, y, z) to Blender (x, -z, y), so the cloud sits where the mesh was. Velocities
+(grid `vel`, world units per second in nephele's axes) turn with the object like the density.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import struct
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+Vec = Tuple[float, float, float]
+
+
+def to_nephele(v: Sequence[float]) -> Vec:
+    """A Blender (Z-up) point or direction in nephele's axes (Y-up)."""
+    return (v[0], v[2], -v[1])
+
+
+def to_blender(v: Sequence[float]) -> Vec:
+    """A nephele (Y-up) point or direction in Blender's axes (Z-up)."""
+    return (v[0], -v[2], v[1])
+
+
+#: Euler XYZ rotation (radians) of the Volume object holding nephele's grids.
+VOLUME_ROTATION = (math.pi / 2, 0.0, 0.0)
+
+
+@dataclass
+class ShotSettings:
+    """What the nephele scene file says (see the repository's scenes/README.md)."""
+
+    blobs: int = 300
+    animation: str = "Diffusion"  # or "Aggregation"
+    seconds: float = 4.0
+    fps: float = 24.0
+    start_frame: int = 1
+    width: int = 640
+    height: int = 360
+    shutter: float = 0.5
+    quality: str = "Final"  # Preview, Final or Production (the scene file's `quality`)
+    voxels_per_diagonal: int = 256
+    seed: int = 1
+    fit_samples: Optional[int] = None
+    fit_candidates: Optional[int] = None
+    camera: str = "Auto((azimuth_deg: 30.0, elevation_deg: 15.0, distance: 1.0, fov_deg: 35.0))"
+    extra_formats: List[str] = field(default_factory=lambda: ["Exr"])
+
+
+# --- mesh export (no operator: works in background mode and any context) -------------------
+
+def write_obj(path: Path, vertices: Sequence[Vec], triangles: Sequence[Tuple[int, int, int]]) -> None:
+    """A triangle mesh as OBJ, vertices already in nephele's axes."""
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("# written by the nephele Blender add-on (Y-up)\n")
+        for v in vertices:
+            f.write(f"v {v[0]:.9g} {v[1]:.9g} {v[2]:.9g}\n")
+        for t in triangles:
+            f.write(f"f {t[0] + 1} {t[1] + 1} {t[2] + 1}\n")
+
+
+def export_object(obj, path: Path, depsgraph=None) -> Tuple[Vec, Vec]:
+    """Write `obj`'s evaluated mesh (modifiers applied) in world space, nephele axes, as OBJ.
+    Returns its bounding box in nephele's axes."""
+    import bpy  # noqa: F401  (only inside Blender)
+
+    if depsgraph is None:
+        import bpy
+
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        mesh.calc_loop_triangles()
+        world = obj.matrix_world
+        verts = [to_nephele(world @ v.co) for v in mesh.vertices]
+        tris = [tuple(t.vertices) for t in mesh.loop_triangles]
+    finally:
+        evaluated.to_mesh_clear()
+    if not tris:
+        raise ValueError(f"{obj.name}: the mesh has no faces to fit")
+    write_obj(path, verts, tris)
+    lo = tuple(min(v[i] for v in verts) for i in range(3))
+    hi = tuple(max(v[i] for v in verts) for i in range(3))
+    return lo, hi
+
+
+def scene_text(mesh_file: str, out_dir: Path, name: str, s: ShotSettings, diagonal: float) -> str:
+    """A nephele scene (RON) fitting `mesh_file` (relative to the scene file) and writing VDB
+    (and EXR) frames to `out_dir`."""
+    voxel = diagonal / max(16, s.voxels_per_diagonal)
+    fit = f'Fit(mesh: "{mesh_file}", blobs: {s.blobs}, seed: {s.seed}'
+    if s.fit_samples:
+        fit += f", samples: {s.fit_samples}"
+    if s.fit_candidates:
+        fit += f", candidates: {s.fit_candidates}"
+    fit += ")"
+    animation = {"Diffusion": "Diffusion(())", "Aggregation": "Aggregation(())"}[s.animation]
+    formats = ", ".join(["Vdb", *[f for f in s.extra_formats if f != "Vdb"]])
+    out = str(out_dir).replace("\\", "/").replace('"', '\\"')
+    return f"""// Written by the nephele Blender add-on. Y-up: Blender's Z is nephele's Y.
+Scene(
+    target: {fit},
+    animation: {animation},
+    camera: {s.camera},
+    shot: (width: {s.width}, height: {s.height}, fps: {s.fps!r}, seconds: {s.seconds!r}, shutter: {s.shutter!r}, start_frame: {s.start_frame}),
+    quality: {s.quality},
+    output: (dir: "{out}", name: "{name}", formats: [{formats}], voxel: {voxel!r}),
+    seed: {s.seed},
+)
+"""
+
+
+# --- rendering -----------------------------------------------------------------------------
+
+def find_binary(preferred: str = "") -> Optional[str]:
+    """The `nephele` CLI: `preferred`, else $NEPHELE_BIN, else `nephele` on PATH."""
+    for candidate in (preferred, os.environ.get("NEPHELE_BIN", "")):
+        if candidate and Path(candidate).is_file():
+            return candidate
+    return shutil.which("nephele")
+
+
+def render(scene_path: Path, binary: Optional[str] = None, frames: Optional[str] = None,
+           progress: Optional[Callable[[str], None]] = None, use_module: Optional[bool] = None) -> None:
+    """Render the shot: with the `nephele` Python module when it can be imported (and
+    `use_module` is not False), else with the CLI `binary` (see `find_binary`). Raises
+    RuntimeError with nephele's own message when the render fails."""
+    module = None
+    if use_module is not False:
+        try:
+            import nephele as module  # type: ignore
+        except ImportError:
+            if use_module:
+                raise RuntimeError("the nephele Python module is not installed in Blender's Python")
+    if module is not None:
+        try:
+            shot = module.Scene.load(str(scene_path)).shot(frames=frames)
+            shot.render_all(progress=(lambda r: progress(f"frame {r['frame']}/{r['of']}")) if progress else None)
+        except module.NepheleError as e:
+            raise RuntimeError(str(e)) from None
+        return
+    exe = find_binary(binary or "")
+    if not exe:
+        raise RuntimeError("no nephele binary: set its path in the add-on's preferences, or "
+                           "NEPHELE_BIN, or put `nephele` on PATH (cargo build --release)")
+    cmd = [exe, "render", str(scene_path)]
+    if frames:
+        cmd += ["--frames", frames]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if progress:
+        for line in proc.stderr.splitlines():
+            progress(line)
+    if proc.returncode != 0:
+        last = [l for l in proc.stderr.splitlines() if l.strip()]
+        raise RuntimeError(last[-1] if last else f"nephele exited with {proc.returncode}")
+
+
+# --- the camera from a frame's EXR header --------------------------------------------------
+
+def exr_attributes(path: Path) -> Dict[str, Tuple[str, bytes]]:
+    """The header attributes of a single-part EXR: name -> (type, raw bytes)."""
+    with open(path, "rb") as f:
+        data = f.read(1 << 16)
+    if data[:4] != b"\x76\x2f\x31\x01":
+        raise ValueError(f"{path}: not an OpenEXR file")
+    pos, attrs = 8, {}
+    while data[pos] != 0:
+        end = data.index(b"\0", pos)
+        name = data[pos:end].decode()
+        tend = data.index(b"\0", end + 1)
+        kind = data[end + 1:tend].decode()
+        (size,) = struct.unpack_from("<i", data, tend + 1)
+        start = tend + 5
+        attrs[name] = (kind, data[start:start + size])
+        pos = start + size
+    return attrs
+
+
+@dataclass
+class CameraFrame:
+    """nephele's camera of a frame, in nephele's axes."""
+
+    eye: Vec
+    right: Vec
+    up: Vec
+    forward: Vec
+    tan_half_h: float
+    tan_half_v: float
+
+
+def camera_from_exr(path: Path) -> CameraFrame:
+    """Read `worldToCamera` and `worldToNDC` (row-vector m44f; camera space +x right, +y up,
+    +z forward) back into the camera's eye, axes and field of view."""
+    attrs = exr_attributes(path)
+    m = struct.unpack("<16f", attrs["worldToCamera"][1])
+    n = struct.unpack("<16f", attrs["worldToNDC"][1])
+    axis = lambda c: tuple(m[r * 4 + c] for r in range(3))  # noqa: E731
+    right, up, forward = axis(0), axis(1), axis(2)
+    t = m[12:15]
+    eye = tuple(-(t[0] * right[i] + t[1] * up[i] + t[2] * forward[i]) for i in range(3))
+    # worldToNDC = view · proj, column 0 = right·a + forward/2, column 1 = −up·b + forward/2.
+    a = sum((n[r * 4 + 0] - 0.5 * forward[r]) * right[r] for r in range(3))
+    b = -sum((n[r * 4 + 1] - 0.5 * forward[r]) * up[r] for r in range(3))
+    return CameraFrame(eye, right, up, forward, 0.5 / a, 0.5 / b)
+
+
+def blender_camera_matrix(cam: CameraFrame):
+    """The Blender camera object's world matrix (it looks down its −Z, +Y up)."""
+    from mathutils import Matrix
+
+    r, u, f, e = (to_blender(v) for v in (cam.right, cam.up, cam.forward, cam.eye))
+    return Matrix((
+        (r[0], u[0], -f[0], e[0]),
+        (r[1], u[1], -f[1], e[1]),
+        (r[2], u[2], -f[2], e[2]),
+        (0.0, 0.0, 0.0, 1.0),
+    ))
+
+
+def import_camera(exr_paths: Dict[int, Path], name: str = "nephele camera"):
+    """A Blender camera keyed on each frame to nephele's camera of that frame (EXR headers)."""
+    import bpy
+
+    data = bpy.data.cameras.new(name)
+    data.sensor_fit = "HORIZONTAL"
+    obj = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(obj)
+    for frame, path in sorted(exr_paths.items()):
+        cam = camera_from_exr(path)
+        obj.matrix_world = blender_camera_matrix(cam)
+        data.angle = 2.0 * math.atan(cam.tan_half_h)
+        if len(exr_paths) > 1:
+            obj.keyframe_insert("location", frame=frame)
+            obj.keyframe_insert("rotation_euler", frame=frame)
+            data.keyframe_insert("lens", frame=frame)
+    return obj
+
+
+# --- the Volume ----------------------------------------------------------------------------
+
+def cloud_material(name: str = "nephele cloud", albedo: float = 0.95, anisotropy: float = 0.75):
+    """Principled Volume reading the grid `density` as extinction per world unit (density 1)."""
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    if hasattr(mat, "use_nodes"):
+        try:
+            mat.use_nodes = True
+        except (AttributeError, TypeError):
+            pass
+    nodes = mat.node_tree.nodes
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    vol = nodes.new("ShaderNodeVolumePrincipled")
+    vol.inputs["Density"].default_value = 1.0
+    vol.inputs["Density Attribute"].default_value = "density"
+    vol.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+    vol.inputs["Anisotropy"].default_value = anisotropy
+    mat.node_tree.links.new(vol.outputs["Volume"], out.inputs["Volume"])
+    return mat
+
+
+def import_volume(first_vdb: Path, start_frame: int, count: int, fps: float, shutter: float,
+                  name: str = "nephele cloud", material=None, motion_blur: bool = True):
+    """The VDB sequence `first_vdb` (frame `start_frame`, `count` frames) as a Volume object
+    with grids `density` and `vel`, rotated from nephele's Y-up into Blender's Z-up; velocity
+    in world units per second (`velocity_unit` SECOND, scale 1); the scene's fps, and its
+    motion blur with nephele's shutter (a fraction of a frame, centred on the frame)."""
+    import bpy
+
+    scene = bpy.context.scene
+    vol = bpy.data.volumes.new(name)
+    vol.filepath = str(first_vdb)
+    vol.is_sequence = count > 1
+    # Blender numbers a sequence's files from 1 at `frame_start`; nephele's first file is
+    # `start_frame`, shown at scene frame `start_frame`.
+    vol.frame_start = start_frame
+    vol.frame_offset = start_frame - 1
+    vol.frame_duration = count
+    vol.sequence_mode = "CLIP"
+    vol.velocity_grid = "vel"
+    vol.velocity_unit = "SECOND"
+    vol.velocity_scale = 1.0
+    obj = bpy.data.objects.new(name, vol)
+    obj.rotation_euler = VOLUME_ROTATION
+    scene.collection.objects.link(obj)
+    vol.materials.append(material or cloud_material())
+    scene.render.fps = max(1, round(fps))
+    scene.render.fps_base = scene.render.fps / fps
+    if motion_blur and shutter > 0:
+        scene.render.use_motion_blur = True
+        scene.render.motion_blur_shutter = shutter
+        scene.render.motion_blur_position = "CENTER"
+    return obj
+
+
+def frame_files(out_dir: Path, name: str, start: int, count: int, ext: str, padding: int = 4) -> Dict[int, Path]:
+    return {f: out_dir / f"{name}_{f:0{padding}d}.{ext}" for f in range(start, start + count)}
+
+
+def make_cloud(obj, out_dir: Path, settings: ShotSettings, binary: Optional[str] = None,
+               progress: Optional[Callable[[str], None]] = None, with_camera: bool = True,
+               use_module: Optional[bool] = None):
+    """The whole round trip for mesh object `obj`: OBJ + scene in `out_dir`, render, import.
+    Returns `(volume_object, camera_object_or_None, scene_path)`."""
+    import bpy
+
+    out_dir = Path(bpy.path.abspath(str(out_dir))).resolve()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    name = bpy.path.clean_name(obj.name)
+    mesh_path = out_dir / f"{name}.obj"
+    lo, hi = export_object(obj, mesh_path)
+    diagonal = math.dist(lo, hi)
+    scene_path = out_dir / f"{name}.ron"
+    scene_path.write_text(scene_text(mesh_path.name, out_dir, name, settings, diagonal))
+    if progress:
+        progress(f"rendering {scene_path}")
+    render(scene_path, binary, progress=progress, use_module=use_module)
+    count = max(1, round(settings.seconds * settings.fps))
+    vdbs = frame_files(out_dir, name, settings.start_frame, count, "vdb")
+    missing = [p for p in vdbs.values() if not p.exists()]
+    if missing:
+        raise RuntimeError(f"nephele wrote no {missing[0]}")
+    volume = import_volume(vdbs[settings.start_frame], settings.start_frame, count,
+                           settings.fps, settings.shutter, name=f"{name} cloud")
+    camera = None
+    if with_camera and "Exr" in settings.extra_formats:
+        camera = import_camera(frame_files(out_dir, name, settings.start_frame, count, "exr"),
+                               name=f"{name} nephele camera")
+        bpy.context.scene.camera = camera
+        bpy.context.scene.render.resolution_x = settings.width
+        bpy.context.scene.render.resolution_y = settings.height
+        bpy.context.scene.render.resolution_percentage = 100
+    return volume, camera, scene_path

@@ -1,0 +1,90 @@
+"""nephele: fit ellipsoidal blobs to a triangle mesh, and render target-shaped cloud shots.
+
+A thin Python layer over the Rust library (module ``nephele._nephele``)::
+
+    import nephele
+    model = nephele.fit("builtin:duck", blobs=120, seed=1)
+    model.blobs                      # (N, 12) float64, columns nephele.Model.COLUMNS
+    scene = nephele.Scene.load("scenes/duck-diffusion.ron")
+    shot = scene.shot(preview=True)
+    rgba = shot.render(shot.frames[0])   # (H, W, 4) float32 linear RGBA, as the EXR
+
+See README.md beside this package for the whole API and its conventions.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Dict, Mapping, Optional, Union
+
+from ._nephele import (
+    FitError,
+    MeshError,
+    Model,
+    ModelError,
+    NepheleError,
+    Scene,
+    SceneError,
+    Shot,
+    fit,
+    version,
+)
+
+__all__ = [
+    "FitError",
+    "MeshError",
+    "Model",
+    "ModelError",
+    "NepheleError",
+    "Scene",
+    "SceneError",
+    "Shot",
+    "fit",
+    "scene_from_dict",
+    "scene_to_dict",
+    "version",
+    "BLOB_COLUMNS",
+]
+
+#: Columns of the (N, 12) blob arrays of :attr:`Model.blobs` and :meth:`Shot.blobs`.
+BLOB_COLUMNS = tuple(Model.COLUMNS)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def scene_from_dict(data: Mapping[str, Any], path: PathLike = "scene.ron") -> Scene:
+    """A scene from a dict that mirrors the RON scene file.
+
+    Structs are dicts of their fields (``{"shot": {"width": 64, "height": 36}}``); enum
+    variants are one-key dicts (``{"target": {"Fit": {"mesh": "builtin:duck"}}}``,
+    ``{"animation": {"Diffusion": {"hold_seconds": 0.5}}}``, ``{"target": {"Model": "m.ron"}}``)
+    or, without data, strings (``"formats": ["Exr", "Vdb"]``); vectors and tuples are lists.
+    ``Scene.to_dict()`` gives this form for any scene. The dict is read into the scene file's
+    own types, written as RON and loaded like a file named ``path`` (relative target paths
+    resolve against its folder; the default output folder is ``renders/<its stem>``), so the
+    validation and its messages are the file's.
+    """
+    try:
+        text = json.dumps(data, allow_nan=False)
+    except (TypeError, ValueError) as e:
+        raise SceneError(f"{os.fspath(path)}: the dict is not plain data: {e}") from None
+    return Scene._from_json(text, os.fspath(path))
+
+
+def scene_to_dict(scene: Scene) -> Dict[str, Any]:
+    """The scene file of ``scene`` as a dict (the form :func:`scene_from_dict` reads)."""
+    return json.loads(scene._to_json())
+
+
+def _from_dict(data: Mapping[str, Any], path: PathLike = "scene.ron") -> Scene:
+    return scene_from_dict(data, path)
+
+
+def _to_dict(self: Scene) -> Dict[str, Any]:
+    return scene_to_dict(self)
+
+
+# Scene.from_dict / scene.to_dict, on the extension class's Python-side namespace.
+Scene.from_dict = staticmethod(_from_dict)  # type: ignore[attr-defined]
+Scene.to_dict = _to_dict  # type: ignore[attr-defined]
