@@ -13,6 +13,18 @@ use super::{Format, SceneError};
 use crate::blobby::Blob;
 use crate::render::{self, RenderSettings};
 
+/// The files of frame number `frame`: one per format, plus the blob dump if asked.
+pub fn frame_paths(shot: &Shot, frame: u32) -> Vec<std::path::PathBuf> {
+    let stem = frame_stem(shot, frame);
+    let formats = shot.scene().file.output.formats.iter();
+    let dump = shot.options().dump_blobs.then_some(FileKind::Blobs);
+    formats
+        .map(|&f| FileKind::Format(f))
+        .chain(dump)
+        .map(|kind| shot.dir().join(provenance::file_name(&stem, kind)))
+        .collect()
+}
+
 /// `<name>_0001`: the file name of frame number `frame` without its extension, the number
 /// zero-padded to `output.padding` digits; a look test's region render is `<name>_0001.region`,
 /// so it never replaces (or is taken for) the frame itself.

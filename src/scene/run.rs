@@ -123,8 +123,8 @@ impl Shot {
                         None => report.out_of_date.push((reason.clone(), 1)),
                     }
                 }
-                // With statistics, finished frames are rendered again in memory (not written).
-                let render = check.needs_render() || (finished && opts.stats);
+                // With statistics every frame is rendered (finished ones again, in memory only).
+                let render = check.needs_render() || opts.stats;
                 if finished && !opts.stats {
                     drop(lock);
                     report.skipped += 1;
