@@ -167,7 +167,7 @@ impl ActiveHits {
 }
 
 /// The blob cloud of one frame (live blobs only, SoA, f32). Equal media have equal density
-/// everywhere (what a hold's frames reuse, [`super::ShotRenderer`]).
+/// everywhere (what a hold's frames reuse, [`super::FrameRenderer`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlobMedium {
     /// Each live blob's index in the frame's list (its identity).
@@ -478,11 +478,18 @@ impl BlobMedium {
     /// on the longest side of its bounds: for the light grid, where they would only alias (the
     /// shadows they cast are below the grid's resolution anyway), at a fraction of the cost.
     pub fn for_lattice(&self, res: u32) -> BlobMedium {
-        let mut m = self.clone();
-        if let Some((lo, hi)) = self.bounds() {
-            let cell = (hi - lo).max_element() / res.max(1) as f32;
-            m.params.billows = self.params.billows.coarsened(2.0 * cell);
+        match self.bounds() {
+            Some(bounds) => self.for_lattice_over(bounds, res),
+            None => self.clone(),
         }
+    }
+
+    /// [`BlobMedium::for_lattice`] for a lattice of `res` cells on the longest side of
+    /// `bounds` (a box wider than the medium's own: motion blur's per-stratum light grids).
+    pub fn for_lattice_over(&self, (lo, hi): (Vec3A, Vec3A), res: u32) -> BlobMedium {
+        let mut m = self.clone();
+        let cell = (hi - lo).max_element() / res.max(1) as f32;
+        m.params.billows = self.params.billows.coarsened(2.0 * cell);
         m
     }
 }

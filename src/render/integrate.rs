@@ -2,7 +2,7 @@
 //! [`Medium`], single scattering from the sun (plus the octave approximation of multiple
 //! scattering) and ambient sky light, with early termination.
 //!
-//! In: [`RenderSettings`], a medium, the frame index. Out: a [`Frame`] of premultiplied cloud
+//! In: [`RenderSettings`], a medium and its lights. Out: a [`Frame`] of premultiplied cloud
 //! radiance, coverage and depth. Deterministic at any thread count: each pixel depends only on
 //! its own generator `item_rng(seed, Stream::Render, pixel)`. The jitter is fixed per pixel,
 //! not per frame, so a cloud that does not move renders to the same bits in every frame (no
@@ -66,37 +66,17 @@ pub(super) struct PixelResult {
     pub(super) passes: [Vec3A; 3],
 }
 
-/// Render `medium` as seen by `settings.camera`, lit through `lights` (usually the light grid
-/// of this medium, [`super::light_grid::LightGrid`]; any other, e.g. one built at another
-/// time, works as well): full shading.
+/// The integrator alone, for a medium and lights of one's own (the analytic test media, the
+/// Mitsuba comparison's grid): `medium` as seen by `settings.camera`, lit through `lights`,
+/// into `film` (only its window's pixels, the same bits as the full frame's there, with the
+/// passes and ID mattes it asks for; the beauty is the same bits whatever it asks for). A
+/// frame of blobs is rendered by [`super::FrameRenderer`], which builds the medium and its
+/// light grid and calls this.
+///
+/// With passes, the frame's [`super::Passes`] hold the sun's single scattering, the sky's (its
+/// cells and the light scattered straight on) and the multiple-scattering octaves, which sum to
+/// the beauty's RGB (up to rounding).
 pub fn render_medium<M: Medium, L: Lights>(
-    settings: &RenderSettings,
-    medium: &M,
-    lights: &L,
-) -> Frame {
-    render_medium_film(settings, medium, lights, &Film::default())
-}
-
-/// [`render_medium`] with the render passes: the frame's [`super::Passes`] hold the sun's
-/// single scattering, the sky's (its cells and the light scattered straight on) and the
-/// multiple-scattering octaves, which sum to the beauty's RGB (up to rounding). The beauty is
-/// the same bits as without passes.
-pub fn render_medium_passes<M: Medium, L: Lights>(
-    settings: &RenderSettings,
-    medium: &M,
-    lights: &L,
-) -> Frame {
-    let film = Film {
-        passes: true,
-        ..Film::default()
-    };
-    render_medium_film(settings, medium, lights, &film)
-}
-
-/// [`render_medium`] into `film`: only its window's pixels (the same bits as the full frame's
-/// there), with the passes and ID mattes it asks for; the beauty is the same bits whatever it
-/// asks for.
-pub fn render_medium_film<M: Medium, L: Lights>(
     settings: &RenderSettings,
     medium: &M,
     lights: &L,
@@ -105,8 +85,8 @@ pub fn render_medium_film<M: Medium, L: Lights>(
     render_tiles(settings, medium, lights, film, shaded_march(film))
 }
 
-/// Coverage and depth only (RGB stays 0): the same march without lighting, for profiling the
-/// cost of shading and for coverage tests.
+/// Coverage and depth only (RGB stays 0): [`render_medium`]'s march without lighting, for
+/// profiling the cost of shading (the benchmark) and for coverage tests.
 pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
     let trace: MarchFn<M, Unshadowed> = march::<M, Unshadowed, false, false, false>;
     render_tiles(settings, medium, &Unshadowed, &Film::default(), trace)

@@ -39,6 +39,7 @@ pub mod cryptomatte;
 pub mod density;
 pub mod fast_exp;
 pub mod film;
+pub mod frame_renderer;
 pub mod integrate;
 pub mod lattice;
 pub mod light_grid;
@@ -52,7 +53,6 @@ pub mod output;
 pub mod phase;
 pub mod settings;
 pub mod shading;
-pub mod shot_renderer;
 pub mod sky;
 pub mod sky_light;
 pub mod sun_grid;
@@ -61,21 +61,17 @@ pub use blobs::BlobMedium;
 pub use camera::ray_ellipsoid;
 pub use cryptomatte::{IdMattes, Mattes};
 pub use film::{Film, Region};
-pub use integrate::{
-    render_medium, render_medium_film, render_medium_passes, render_medium_unshaded,
-};
+pub use frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
+pub use integrate::{render_medium, render_medium_unshaded};
 pub use light_grid::LightGrid;
 pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
 pub use medium::{Homogeneous, Medium, Shape};
-pub use motion_blur::{
-    BlurReport, Shutter, TimeSample, render_frame_blurred, render_frame_blurred_film,
-};
+pub use motion_blur::{BlurReport, Shutter, TimeSample};
 pub use settings::{
     Camera, CloudMaterial, MIN_LIGHT_GRID_CELLS, Noise, Quality, QualityPreset, RenderSettings,
     Sky, Sun,
 };
 pub use shading::{InScattered, Shading};
-pub use shot_renderer::{Reuse, ShotRenderer};
 pub use sky::SkyDome;
 
 use crate::blobby::Blob;
@@ -127,27 +123,21 @@ impl Passes {
     }
 }
 
-/// Render one frame. Deterministic for a given input at any thread count; the per-pixel
-/// jitter does not change between frames, so identical blobs give identical frames.
+/// A frame's 0-based position in its shot: what the plan, the per-frame settings and seeds are
+/// indexed by (`k` in [`crate::scene::Shot`]). Not the frame *number*, which the files, the
+/// EXR headers and the command line show: `shot.start_frame + index`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct FrameIndex(pub u32);
+
+impl From<u32> for FrameIndex {
+    fn from(k: u32) -> FrameIndex {
+        FrameIndex(k)
+    }
+}
+
+/// Render one frame, an instant of the whole frame, beauty only: [`FrameRenderer::render_once`]
+/// with [`FrameOptions::default`]. Deterministic for a given input at any thread count; the
+/// per-pixel jitter does not change between frames, so identical blobs give identical frames.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
-    let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
-    render_medium(settings, &medium, &lights)
-}
-
-/// [`render_frame`] with the render passes ([`Frame::passes`]); the beauty is the same bits.
-pub fn render_frame_with_passes(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
-    let film = Film {
-        passes: true,
-        ..Film::default()
-    };
-    render_frame_film(settings, blobs, &film)
-}
-
-/// [`render_frame`] into `film`: its window only, with the passes and ID mattes it asks for;
-/// every pixel rendered has the full frame's bits.
-pub fn render_frame_film(settings: &RenderSettings, blobs: &[Blob], film: &Film) -> Frame {
-    let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
-    render_medium_film(settings, &medium, &lights, film)
+    FrameRenderer::render_once(settings, blobs, &FrameOptions::default()).0
 }

@@ -83,7 +83,7 @@ impl Shot {
         let mut stats = Vec::new();
         let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
-        let mut renderer = crate::render::ShotRenderer::new();
+        let mut renderer = crate::render::FrameRenderer::new();
         // A frame's files are encoded and written on their own thread while the next frame
         // renders (one at a time, in order; its error stops the shot before the next write).
         std::thread::scope(|scope| -> Result<(), SceneError> {
@@ -113,11 +113,12 @@ impl Shot {
                         None => report.out_of_date.push((reason, 1)),
                     }
                 }
-                let own = self.own_march(k, &settings, &blobs)?;
-                let image = match &own {
-                    Some(frame) => frame,
-                    None => renderer.render(&settings, &blobs),
+                let shutter = self.shutter(k, settings.quality.time_samples)?;
+                let options = crate::render::FrameOptions {
+                    shutter: shutter.as_ref(),
+                    film: self.film()?,
                 };
+                let image = renderer.render(&settings, &blobs, &options);
                 let rendered = Instant::now();
                 finish_writing(&mut writing)?;
                 let written = Instant::now();
@@ -191,27 +192,6 @@ impl Shot {
 }
 
 impl Shot {
-    /// Frame `k` when it needs its own march: a region, passes and mattes (no reuse of the last
-    /// frame's light grid or frame), or an open shutter with a moving cloud (blurred). `None`:
-    /// the shot's renderer makes it.
-    fn own_march(
-        &self,
-        k: u32,
-        settings: &crate::render::RenderSettings,
-        blobs: &[crate::blobby::Blob],
-    ) -> Result<Option<crate::render::Frame>, SceneError> {
-        let film = self.film()?;
-        Ok(
-            if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
-                Some(crate::render::render_frame_blurred_film(settings, blobs, &shutter, film).0)
-            } else if *film != crate::render::Film::default() {
-                Some(crate::render::render_frame_film(settings, blobs, film))
-            } else {
-                None
-            },
-        )
-    }
-
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
     /// with the reason (the run's rule, for `prepare` and the farm).
     pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
