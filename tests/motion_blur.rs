@@ -6,7 +6,7 @@ mod temp_support;
 
 use glam::{DQuat, DVec3, Vec3};
 use nephele::blobby::Blob;
-use nephele::render::motion_blur::strata;
+use nephele::render::integrator::motion_blur::strata;
 use nephele::render::{
     BlurReport, Camera, CloudMaterial, Frame, FrameOptions, FrameRenderer, Quality, RenderSettings,
     Shutter, Sky, Sun, TimeSample, render_frame,

@@ -14,11 +14,11 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
-use nephele::render::phase::cloud_phase;
+use nephele::render::light::phase::cloud_phase;
 use nephele::render::{
-    BlobMedium, Camera, CloudMaterial, Film, Homogeneous, HomogeneousLights, LightGrid, Lights,
-    Noise, Quality, RenderSettings, Shape, Sky, Sun, output, render_frame, render_medium,
-    render_medium_unshaded,
+    BlobMedium, Camera, CloudMaterial, Film, Homogeneous, HomogeneousLights, LightGrid,
+    NoiseSettings, Quality, RenderSettings, ShadowDepths, Shape, Sky, Sun, output, render_frame,
+    render_medium, render_medium_unshaded,
 };
 use rand::{RngExt, SeedableRng};
 
@@ -109,9 +109,9 @@ fn hard_ball(s: &mut RenderSettings, density: f32) -> Blob {
     s.cloud = CloudMaterial {
         density,
         edge: 0.0,
-        noise: Noise {
+        noise: NoiseSettings {
             amplitude: 0.0,
-            ..Noise::default()
+            ..NoiseSettings::default()
         },
         ..CloudMaterial::default()
     };
@@ -500,7 +500,10 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     let sun_s = median(
         (0..3)
             .map(|_| {
-                time(|| nephele::render::sun_grid::SunGrid::build(&lattice, sun_dir, h, None)).1
+                time(|| {
+                    nephele::render::light::sun_depth::SunGrid::build(&lattice, sun_dir, h, None)
+                })
+                .1
             })
             .collect(),
     );

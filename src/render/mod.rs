@@ -12,7 +12,7 @@
 //! volume export samples it); [`integrate`] marches every pixel through the blob supports only
 //! (tile frustum culling, then per-ray ellipsoid intervals), evaluating the noisy density
 //! ([`density`], [`noise`]) and the lighting ([`shading`]: phase functions in [`phase`], the sky
-//! dome in [`sky`], the optical depths from any [`Lights`]).
+//! dome in [`sky`], the optical depths from any [`ShadowDepths`]).
 //!
 //! Where is sunlight computed? Its shadowing in [`sun_grid`] (assembled with the sky's in
 //! [`light_grid`]), its scattering toward the eye in [`shading`].
@@ -31,48 +31,36 @@
 //! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"
 //!   (billows at several scales on a base shape; a flat, rounded-off cloud base).
 
-pub mod blobs;
 pub mod camera;
-pub mod color;
 pub mod counters;
-pub mod cryptomatte;
-pub mod density;
 pub mod fast_exp;
-pub mod film;
-pub mod frame_renderer;
-pub mod integrate;
-pub mod lattice;
-pub mod light_grid;
-pub mod lights;
+pub mod integrator;
+pub mod light;
 pub mod medium;
 pub mod memory;
-pub mod motion_blur;
-pub mod noise;
-mod noise_simd;
 pub mod output;
-pub mod phase;
+pub mod sampler;
 pub mod settings;
-pub mod shading;
-pub mod sky;
-pub mod sky_light;
-pub mod sun_grid;
 
-pub use blobs::BlobMedium;
-pub use camera::ray_ellipsoid;
-pub use cryptomatte::{IdMattes, Mattes};
-pub use film::{Film, Region};
-pub use frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
-pub use integrate::{render_medium, render_medium_unshaded};
-pub use light_grid::LightGrid;
-pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
+pub use camera::{Camera, ray_ellipsoid};
+pub use integrator::frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
+pub use integrator::motion_blur::{BlurReport, Shutter, TimeSample};
+pub use integrator::{render_medium, render_medium_unshaded};
+pub use light::grid::LightGrid;
+pub use light::sky_dome::SkyDome;
+pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
+pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
-pub use motion_blur::{BlurReport, Shutter, TimeSample};
+pub use output::cryptomatte::{IdMattes, Mattes};
+pub use output::film::{Film, Region};
 pub use settings::{
-    Camera, CloudMaterial, MIN_LIGHT_GRID_CELLS, Noise, Quality, QualityPreset, RenderSettings,
+    CloudMaterial, MIN_LIGHT_GRID_CELLS, NoiseSettings, Quality, QualityPreset, RenderSettings,
     Sky, Sun,
 };
-pub use shading::{InScattered, Shading};
-pub use sky::SkyDome;
+
+// The paths the scene module still names (it is edited on main at the same time); to be
+// written `output::…` there after the merge.
+pub(crate) use output::{color, cryptomatte};
 
 use crate::blobby::Blob;
 

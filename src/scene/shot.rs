@@ -16,7 +16,7 @@ use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
-use crate::render::cryptomatte::{self, Mattes};
+use crate::render::output::cryptomatte::{self, Mattes};
 use crate::render::settings::BasePlane;
 use crate::render::{self, Film, Frame, Quality, Region, RenderSettings};
 
@@ -308,7 +308,8 @@ impl Shot {
         }
         let plan = &self.prepared()?.plan;
         let t = plan.timeline().time(k as usize);
-        let (centres, stratum) = render::motion_blur::strata(spec.shutter, time_samples, spec.fps);
+        let (centres, stratum) =
+            render::integrator::motion_blur::strata(spec.shutter, time_samples, spec.fps);
         let samples = centres
             .into_iter()
             .map(|offset| {

@@ -1,14 +1,14 @@
 //! The per-frame light grid, where the renderer computes how much sunlight and skylight reaches
 //! each point of the cloud: optical depth toward the sun ([`SunGrid`]) and toward each sky cell
-//! ([`super::sky_light`]) on the nodes of regular grids over the cloud, so shading a march
+//! ([`crate::render::light::sky_cells`]) on the nodes of regular grids over the cloud, so shading a march
 //! sample costs one trilinear lookup instead of secondary marches.
 //!
-//! In: any [`Medium`] and the sun direction. Out: [`LightGrid`], a [`Lights`] — the depths
+//! In: any [`Medium`] and the sun direction. Out: [`LightGrid`], a [`ShadowDepths`] — the depths
 //! anywhere (clamped to the grid). The grid may light the march through another medium than
 //! the one it was built from (motion blur: one grid at the frame's time).
 //!
 //! The medium is sampled once, along the sun grid's light columns (through the medium's own
-//! rays, [`super::lattice`]: only inside its intervals); the sky's coarse world grid takes its
+//! rays, [`crate::render::medium::lattice`]: only inside its intervals); the sky's coarse world grid takes its
 //! extinction from those samples, prefiltered. Buffers can be handed on from frame to frame
 //! ([`LightGrid::build_reusing`]).
 //!
@@ -20,12 +20,12 @@
 use glam::Vec3A;
 use rayon::prelude::*;
 
-use super::lattice::{GridShape, trilinear};
-use super::lights::{LightDepths, Lights};
-use super::medium::Medium;
-use super::settings::RenderSettings;
-use super::sky_light::{SKY_DIRECTIONS, directions};
-use super::sun_grid::SunGrid;
+use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions};
+use crate::render::light::sun_depth::SunGrid;
+use crate::render::light::{LightDepths, ShadowDepths};
+use crate::render::medium::Medium;
+use crate::render::medium::lattice::{GridShape, trilinear};
+use crate::render::settings::RenderSettings;
 
 /// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
 /// toward each sky cell on a grid [`SKY_SPACING`] times coarser (sky light comes from a broad
@@ -191,7 +191,7 @@ impl LightGrid {
     }
 }
 
-impl Lights for LightGrid {
+impl ShadowDepths for LightGrid {
     #[inline]
     fn depths(&self, x: Vec3A) -> LightDepths {
         self.lookup(x)
@@ -417,8 +417,8 @@ mod tests {
             let c = grid.lookup(Vec3A::ZERO);
             let (ts, tu, td) = (
                 c.sun,
-                c.sky[crate::render::sky_light::UP],
-                c.sky[crate::render::sky_light::DOWN],
+                c.sky[crate::render::light::sky_cells::UP],
+                c.sky[crate::render::light::sky_cells::DOWN],
             );
             // The sky's depths are stored SURFACE_SHIFT cells (of the 64 over the box of side
             // 2) toward the light: the chord less σ·shift.

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! In: per frame, [`RenderSettings`], the blobs and [`FrameOptions`] — the shutter (motion blur,
-//! [`super::motion_blur`]) and the film (region, passes, ID mattes, [`Film`]). Out: the
+//! [`crate::render::integrator::motion_blur`]) and the film (region, passes, ID mattes, [`Film`]). Out: the
 //! [`Frame`] and a [`RenderReport`].
 //!
 //! A [`FrameRenderer`] renders a shot's frames in order, each reusing what it can of the one
@@ -27,17 +27,17 @@
 //! a frame number is what the files and the command line show (`shot.start_frame` plus the
 //! index). Time reaches the render through `settings.time` only.
 //!
-//! [`FrameIndex`]: super::FrameIndex
+//! [`FrameIndex`]: crate::render::FrameIndex
 
 use glam::Vec3A;
 
-use super::blobs::BlobMedium;
-use super::film::Film;
-use super::integrate::render_medium;
-use super::light_grid::LightGrid;
-use super::motion_blur::{self, Blur, BlurReport, Bounded, Shutter};
-use super::{Frame, RenderSettings};
 use crate::blobby::Blob;
+use crate::render::integrator::motion_blur::{self, Blur, BlurReport, Bounded, Shutter};
+use crate::render::integrator::render_medium;
+use crate::render::light::grid::LightGrid;
+use crate::render::medium::blobs::BlobMedium;
+use crate::render::output::film::Film;
+use crate::render::{Frame, RenderSettings};
 
 /// The whole frame, beauty only: [`FrameOptions::default`]'s film.
 static BEAUTY: Film = Film {

@@ -17,7 +17,7 @@
 //! than [`MAX_LIGHT_SHIFT`] of the cloud's extent (in light-grid cells,
 //! [`BlurReport::shift_cells`]) within the shutter; then each stratum gets a grid of its own (all
 //! on one lattice over the whole shutter), since shadows cells off would show. The grids are
-//! built by the frame renderer ([`super::frame_renderer`]) from each medium's light-grid copy,
+//! built by the frame renderer ([`crate::render::integrator::frame_renderer`]) from each medium's light-grid copy,
 //! as an unblurred frame's are (before, motion blur built them from the full-detail medium:
 //! at 960×540 `Final`, a shutter of 0.5 on a moving aggregation, 2 of 255 levels at most in the
 //! 8-bit frame).
@@ -31,17 +31,17 @@
 use glam::{DVec3, Vec3A};
 use rand::RngExt;
 
-use super::Frame;
-use super::blobs::BlobMedium;
-use super::camera::{CameraRays, Ray};
-use super::film::Film;
-use super::integrate::{PixelSum, pixel_sample, render_film, shaded_march};
-use super::lattice::GridShape;
-use super::light_grid::LightGrid;
-use super::medium::Medium;
-use super::settings::RenderSettings;
-use super::shading::Shading;
 use crate::blobby::Blob;
+use crate::render::Frame;
+use crate::render::camera::{CameraRays, Ray};
+use crate::render::integrator::{PixelSum, pixel_sample, render_film, shaded_march};
+use crate::render::light::grid::LightGrid;
+use crate::render::light::shading::Shading;
+use crate::render::medium::Medium;
+use crate::render::medium::blobs::BlobMedium;
+use crate::render::medium::lattice::GridShape;
+use crate::render::output::film::Film;
+use crate::render::settings::RenderSettings;
 use crate::rng::{Stream, item_rng, key};
 
 /// Largest blob travel from the frame's time to the shutter's ends, as a fraction of the light
@@ -93,7 +93,7 @@ pub struct BlurReport {
 }
 
 /// A blurred frame's time samples and how they are lit, worked out by [`Blob`] travel; the
-/// light grids themselves are built by the frame renderer ([`super::frame_renderer`]).
+/// light grids themselves are built by the frame renderer ([`crate::render::integrator::frame_renderer`]).
 pub(crate) struct Blur {
     /// The medium of each stratum, moving, marched with the frame's coarse step.
     pub(crate) slices: Vec<BlobMedium>,
@@ -169,7 +169,7 @@ impl<M: Medium> Medium for Bounded<'_, M> {
         self.medium.scratch()
     }
 
-    fn begin_tile(&self, frustum: &super::camera::Frustum, s: &mut Self::Scratch) {
+    fn begin_tile(&self, frustum: &crate::render::camera::Frustum, s: &mut Self::Scratch) {
         self.medium.begin_tile(frustum, s)
     }
 

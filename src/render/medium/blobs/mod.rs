@@ -1,21 +1,21 @@
 //! The blob cloud as a participating medium: f32 SoA blobs, ray gathering and the noisy
-//! density (the light grid is built from it separately, [`super::light_grid`]).
+//! density (the light grid is built from it separately, [`crate::render::light::grid`]).
 //!
 //! In: a frame's [`Blob`]s (f64; slice index = identity) and [`RenderSettings`]. Out:
 //! [`BlobMedium`], a [`Medium`] for the integrator.
 //!
-//! The density each sample sees is the model in [`super::density`].
+//! The density each sample sees is the model in [`crate::render::medium::density`].
 
 use glam::{Mat3A, Vec3A};
 use rand::RngExt;
 
-use super::camera::{Frustum, Ray, ray_ellipsoid};
-use super::counters::{self, Counter};
-use super::density::{DensityParams, Hit, density};
-use super::medium::Medium;
-use super::noise::Billows;
-use super::settings::{BasePlane, RenderSettings};
 use crate::blobby::{Blob, THRESHOLD};
+use crate::render::camera::{Frustum, Ray, ray_ellipsoid};
+use crate::render::counters::{self, Counter};
+use crate::render::medium::Medium;
+use crate::render::medium::density::{DensityParams, Hit, density};
+use crate::render::medium::noise::Billows;
+use crate::render::settings::{BasePlane, RenderSettings};
 use crate::rng::{Stream, item_rng};
 
 /// Finest billow wavelength in pixels of the frame (at the camera's look-at distance): finer
@@ -167,7 +167,7 @@ impl ActiveHits {
 }
 
 /// The blob cloud of one frame (live blobs only, SoA, f32). Equal media have equal density
-/// everywhere (what a hold's frames reuse, [`super::FrameRenderer`]).
+/// everywhere (what a hold's frames reuse, [`crate::render::FrameRenderer`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlobMedium {
     /// Each live blob's index in the frame's list (its identity).
@@ -575,7 +575,7 @@ impl Medium for BlobMedium {
     #[inline]
     fn label(&self, s: &mut BlobScratch, t: f32) -> u32 {
         let active = s.active.at(&s.hits, t);
-        let (mut best, mut label) = (0.0f32, crate::render::cryptomatte::NO_MATTE);
+        let (mut best, mut label) = (0.0f32, crate::render::output::cryptomatte::NO_MATTE);
         for h in active.iter().map(|&i| &s.hits[i as usize]) {
             let u = (h.o + h.d * t).length_squared();
             if u < 1.0 {
@@ -620,12 +620,13 @@ impl Medium for BlobMedium {
 
 #[cfg(test)]
 mod tests {
-    use super::super::density::MAX_ACTIVE;
     use super::*;
+    use crate::render::medium::density::MAX_ACTIVE;
 
     /// An 8×8 `Final` frame looking down +Z from z = −5, with length unit `length_scale`.
     fn tiny_settings(length_scale: f32) -> RenderSettings {
-        use crate::render::settings::{Camera, CloudMaterial, Quality, Sky, Sun};
+        use crate::render::Camera;
+        use crate::render::settings::{CloudMaterial, Quality, Sky, Sun};
         RenderSettings {
             width: 8,
             height: 8,
