@@ -12,6 +12,7 @@ pub mod grid;
 pub mod phase;
 pub mod shading;
 pub mod sky_cells;
+pub mod sky_depth;
 pub mod sky_dome;
 pub mod sun_depth;
 
