@@ -5,17 +5,25 @@
 //! frames so that noise anchored to it travels with it; dead or zero-size blobs are skipped).
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
 //!
-//! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA, a
-//! density-only [`Medium`]; [`light_grid::LightGrid::for_frame`] builds the per-frame light grid
-//! from any medium (optical depth toward the sun, [`sun_grid`], and toward the sky cells of
-//! [`sky_light`]; the medium's extinction sampled along lattice rays, [`lattice`], as the
-//! volume export samples it); [`integrate`] marches every pixel through the blob supports only
-//! (tile frustum culling, then per-ray ellipsoid intervals), evaluating the noisy density
-//! ([`density`], [`noise`]) and the lighting ([`shading`]: phase functions in [`phase`], the sky
-//! dome in [`sky`], the optical depths from any [`ShadowDepths`]).
+//! Where is a frame rendered? In one place, [`FrameRenderer`] ([`integrator::frame_renderer`]):
+//! the blobs become a density-only [`Medium`] ([`BlobMedium::new`], [`medium`]); its light-grid
+//! copy ([`BlobMedium::for_light_grid`]) feeds the per-frame [`LightGrid`] ([`light`]: optical
+//! depth toward the sun, [`light::sun_depth`], and toward the sky cells, [`light::sky_depth`]);
+//! the [`integrator`] marches every pixel through the blob supports only (tile frustum culling,
+//! then per-ray ellipsoid intervals), evaluating the noisy density ([`medium::density`],
+//! [`medium::noise`]) and the lighting ([`light::shading`]: phase functions in [`light::phase`],
+//! the sky dome in [`light::sky_dome`], the depths from any [`ShadowDepths`]). The shot's reuse
+//! (holds, a still cloud), the shutter and the film ([`FrameOptions`]) are its options; the shot
+//! loop, `Shot::render_frame`, the statistics, the preview and motion blur all call it.
 //!
-//! Where is sunlight computed? Its shadowing in [`sun_grid`] (assembled with the sky's in
-//! [`light_grid`]), its scattering toward the eye in [`shading`].
+//! The front: [`FrameRenderer`] (and [`render_frame`], one frame of it), [`render_medium`] (the
+//! integrator alone, for media of one's own), the settings, [`Frame`] and [`FrameIndex`]; the
+//! folders: [`camera`], [`sampler`], [`integrator`] (march, tiles, motion blur, reuse),
+//! [`medium`] (density, blobs, noise, lattice), [`light`] (grid, sun and sky depths, sky dome,
+//! phase, shading), [`output`] (film, EXR, PNG, Cryptomatte, colour).
+//!
+//! Where is sunlight computed? Its shadowing in [`light::sun_depth`] (assembled with the sky's
+//! in [`light::grid`]), its scattering toward the eye in [`light::shading`].
 //!
 //! References:
 //! - L. G. Henyey, J. L. Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93, 70–83.
@@ -25,7 +33,7 @@
 //!   Frostbite" (energy-conserving step integration, the octave scheme in real time).
 //! - K. Perlin (2002), "Improving noise", SIGGRAPH (gradient noise).
 //! - M. Wrenninge (2012), *Production Volume Rendering* (pyroclastic displacement by `|noise|`:
-//!   the billows of [`noise::Billows`]).
+//!   the billows of [`medium::noise::Billows`]).
 //! - A. Bouthors, F. Neyret (2004), "Modeling clouds shape", Eurographics short papers (cumulus as
 //!   puffs on puffs, each level smaller: octaves that follow the local feature size).
 //! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"

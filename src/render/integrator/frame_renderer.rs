@@ -18,7 +18,7 @@
 //! frame), the light grid itself where the cloud and the sun have not changed, the whole frame
 //! in a hold (same cloud, settings and film: the renderer is deterministic and its jitter fixed
 //! per pixel, so the frame would come out bit for bit the same). Every light grid — the frame's,
-//! or one per time sample of a fast shutter — is built by [`light_grid`] from the medium's
+//! or one per time sample of a fast shutter — is built by `light_grid` from the medium's
 //! light-grid copy ([`BlobMedium::for_light_grid`]), so the blurred and the unblurred frames
 //! are lit alike.
 //!

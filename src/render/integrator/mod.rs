@@ -14,7 +14,7 @@
 //! trace `n` more (adaptive anti-aliasing of the silhouette, at the cost of its pixels).
 //!
 //! Each merged interval `[a, b]` is walked in segments (coarse through empty space, fine inside
-//! the medium, see [`march`]; fine steps are thin where the ray enters the cloud and grow as its
+//! the medium, see [`march()`]; fine steps are thin where the ray enters the cloud and grow as its
 //! transmittance falls, so each absorbs about the same share of the pixel's light); a segment of
 //! length `h` is sampled at `s + ξ·h` (one jitter `ξ` per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
@@ -22,7 +22,7 @@
 //! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
 //! light scattered straight on along it ([`Shading::forward_sky`]).
 //!
-//! Files: [`march`] (one ray), [`tiles`] (the tile driver and the frame's buffers),
+//! Files: `march` (one ray), `tiles` (the tile driver and the frame's buffers),
 //! [`frame_renderer`] (the blob pipeline and the shot's reuse), [`motion_blur`] (the shutter);
 //! the pixel's rays come from [`crate::render::sampler`].
 //!

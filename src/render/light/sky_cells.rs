@@ -7,7 +7,8 @@
 //! HG(g/(1 + g))` with `f = g²`. The smooth remainder is sampled on the cells; the delta part
 //! is sky light from straight behind the sample scattered straight on, which along a whole ray
 //! sums to `L_sky(v)·τ·T` (`τ` the ray's optical depth through the cloud, `T = e^{−τ}`): the
-//! integrator adds it once per ray ([`SkyLight::forward`]).
+//! integrator adds it once per ray ([`SkyLight::forward_radiance`], through
+//! [`crate::render::light::shading::Shading::forward_sky`]).
 //!
 //! In: the [`SkyDome`] and the phase asymmetry. Out: per-frame cell directions and radiances;
 //! per ray, the RGB weight of each cell ([`SkyLight::ray_weights`]).

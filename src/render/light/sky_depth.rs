@@ -8,7 +8,7 @@
 //!
 //! In: the light grid's world lattice and the sun grid's extinction samples (the medium is
 //! sampled once a frame, for the sun). Out: [`SKY_DIRECTIONS`] quantized depths per coarse
-//! node ([`sky_depths`]).
+//! node (`sky_depths`).
 
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -124,7 +124,7 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 pub const SKY_SPACING: usize = 3;
 
 /// Shift of the stored sky depths toward the light, in cells of the light grid (not of the sky
-/// grid: see [`SKY_SPACING`]; two, one sky cell when that was twice as coarse; see [`sweep`]).
+/// grid: see [`SKY_SPACING`]; two, one sky cell when that was twice as coarse; see `sweep`).
 pub const SURFACE_SHIFT: f32 = 2.0;
 
 /// Optical depth from every node toward the light (light travelling along unit `dir`), stored

@@ -7,7 +7,7 @@
 //! The density each sample sees is the model in [`crate::render::medium::density`].
 //!
 //! Here: the conversion to SoA (with the `A` override, [`roomy_support`]) and the march step;
-//! in [`gather`], what a ray sees — the tile's culling, the per-ray gathering of the blobs it
+//! in `gather`, what a ray sees — the tile's culling, the per-ray gathering of the blobs it
 //! crosses, the active window along it — and the [`Medium`](crate::render::Medium) impl.
 
 use glam::{Mat3A, Vec3A};
