@@ -1,5 +1,5 @@
 //! The animation's natural ID mattes: which named piece of the shot each blob belongs to, for
-//! the Cryptomatte layer of the render passes (`crate::render::cryptomatte`).
+//! the Cryptomatte layer of the render passes (`crate::render::output::cryptomatte`).
 //!
 //! - **Aggregation**: one matte per cluster, `cluster_00`, `cluster_01`, … in the clusters'
 //!   region order ([`super::AggregationPlan::clusters`]).

@@ -93,15 +93,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bar = nephele::progress::bar("preview", args.frames as u64);
     let mut images = Vec::with_capacity(args.frames as usize);
     let mut times = Vec::with_capacity(args.frames as usize);
+    // One cloud seen from around it: the frames after the first reuse its light grid.
+    let mut renderer = render::FrameRenderer::new();
     for k in 0..args.frames {
         let settings = turntable_settings(&args, bounds, length_scale as f32, k);
         let start = Instant::now();
-        let frame = render::render_frame(&settings, blobs);
+        let frame = renderer.render(&settings, blobs, &render::FrameOptions::default());
         times.push(start.elapsed().as_secs_f64());
         let path = dir.join(format!("turntable_{:04}.png", k + 1));
-        output::write_png(&path, &frame, &settings)
+        output::write_png(&path, frame, &settings)
             .with_context(|| format!("writing {}", path.display()))?;
-        images.push(output::tonemapped(&frame, &settings));
+        images.push(output::tonemapped(frame, &settings));
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -6,9 +6,20 @@
 //! rays of a tile, used to cull blobs once per tile; and the ray–ellipsoid intersection the
 //! media use.
 
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 
-use super::settings::Camera;
+/// A pinhole camera in world space (the model's units), +Y up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub position: Vec3,
+    /// Point the camera looks at.
+    pub look_at: Vec3,
+    /// Up hint (need not be orthogonal to the view direction).
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov_deg: f32,
+}
 
 /// A ray `origin + t·dir`, `dir` unit length.
 #[derive(Clone, Copy, Debug, PartialEq)]

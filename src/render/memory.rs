@@ -5,7 +5,7 @@
 //! memory the operating system reports as available (Linux `/proc/meminfo`; where that cannot
 //! be read, only the estimate's own sanity bound applies).
 
-use super::settings::{Quality, QualityPreset};
+use crate::render::settings::{Quality, QualityPreset};
 
 /// Bytes held per pixel while a frame is rendered and written: the frame (RGB, alpha, depth:
 /// 20; the tiles write straight into it), the tone-mapped PNG and its encoding (6), the EXR's

@@ -5,17 +5,25 @@
 //! frames so that noise anchored to it travels with it; dead or zero-size blobs are skipped).
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
 //!
-//! A frame is made in three parts: [`blobs::BlobMedium::new`] converts the blobs to f32 SoA, a
-//! density-only [`Medium`]; [`light_grid::LightGrid::for_frame`] builds the per-frame light grid
-//! from any medium (optical depth toward the sun, [`sun_grid`], and toward the sky cells of
-//! [`sky_light`]; the medium's extinction sampled along lattice rays, [`lattice`], as the
-//! volume export samples it); [`integrate`] marches every pixel through the blob supports only
-//! (tile frustum culling, then per-ray ellipsoid intervals), evaluating the noisy density
-//! ([`density`], [`noise`]) and the lighting ([`shading`]: phase functions in [`phase`], the sky
-//! dome in [`sky`], the optical depths from any [`Lights`]).
+//! Where is a frame rendered? In one place, [`FrameRenderer`] ([`integrator::frame_renderer`]):
+//! the blobs become a density-only [`Medium`] ([`BlobMedium::new`], [`medium`]); its light-grid
+//! copy ([`BlobMedium::for_light_grid`]) feeds the per-frame [`LightGrid`] ([`light`]: optical
+//! depth toward the sun, [`light::sun_depth`], and toward the sky cells, [`light::sky_depth`]);
+//! the [`integrator`] marches every pixel through the blob supports only (tile frustum culling,
+//! then per-ray ellipsoid intervals), evaluating the noisy density ([`medium::density`],
+//! [`medium::noise`]) and the lighting ([`light::shading`]: phase functions in [`light::phase`],
+//! the sky dome in [`light::sky_dome`], the depths from any [`ShadowDepths`]). The shot's reuse
+//! (holds, a still cloud), the shutter and the film ([`FrameOptions`]) are its options; the shot
+//! loop, `Shot::render_frame`, the statistics, the preview and motion blur all call it.
 //!
-//! Where is sunlight computed? Its shadowing in [`sun_grid`] (assembled with the sky's in
-//! [`light_grid`]), its scattering toward the eye in [`shading`].
+//! The front: [`FrameRenderer`] (and [`render_frame`], one frame of it), [`render_medium`] (the
+//! integrator alone, for media of one's own), the settings, [`Frame`] and [`FrameIndex`]; the
+//! folders: [`camera`], [`sampler`], [`integrator`] (march, tiles, motion blur, reuse),
+//! [`medium`] (density, blobs, noise, lattice), [`light`] (grid, sun and sky depths, sky dome,
+//! phase, shading), [`output`] (film, EXR, PNG, Cryptomatte, colour).
+//!
+//! Where is sunlight computed? Its shadowing in [`light::sun_depth`] (assembled with the sky's
+//! in [`light::grid`]), its scattering toward the eye in [`light::shading`].
 //!
 //! References:
 //! - L. G. Henyey, J. L. Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93, 70–83.
@@ -25,58 +33,38 @@
 //!   Frostbite" (energy-conserving step integration, the octave scheme in real time).
 //! - K. Perlin (2002), "Improving noise", SIGGRAPH (gradient noise).
 //! - M. Wrenninge (2012), *Production Volume Rendering* (pyroclastic displacement by `|noise|`:
-//!   the billows of [`noise::Billows`]).
+//!   the billows of [`medium::noise::Billows`]).
 //! - A. Bouthors, F. Neyret (2004), "Modeling clouds shape", Eurographics short papers (cumulus as
 //!   puffs on puffs, each level smaller: octaves that follow the local feature size).
 //! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"
 //!   (billows at several scales on a base shape; a flat, rounded-off cloud base).
 
-pub mod blobs;
 pub mod camera;
-pub mod color;
 pub mod counters;
-pub mod cryptomatte;
-pub mod density;
 pub mod fast_exp;
-pub mod film;
-pub mod integrate;
-pub mod lattice;
-pub mod light_grid;
-pub mod lights;
+pub mod integrator;
+pub mod light;
 pub mod medium;
 pub mod memory;
-pub mod motion_blur;
-pub mod noise;
-mod noise_simd;
 pub mod output;
-pub mod phase;
+pub mod sampler;
 pub mod settings;
-pub mod shading;
-pub mod shot_renderer;
-pub mod sky;
-pub mod sky_light;
-pub mod sun_grid;
 
-pub use blobs::BlobMedium;
-pub use camera::ray_ellipsoid;
-pub use cryptomatte::{IdMattes, Mattes};
-pub use film::{Film, Region};
-pub use integrate::{
-    render_medium, render_medium_film, render_medium_passes, render_medium_unshaded,
-};
-pub use light_grid::LightGrid;
-pub use lights::{HomogeneousLights, LightDepths, Lights, Unshadowed};
+pub use camera::{Camera, ray_ellipsoid};
+pub use integrator::frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
+pub use integrator::motion_blur::{BlurReport, Shutter, TimeSample};
+pub use integrator::{render_medium, render_medium_unshaded};
+pub use light::grid::LightGrid;
+pub use light::sky_dome::SkyDome;
+pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
+pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
-pub use motion_blur::{
-    BlurReport, Shutter, TimeSample, render_frame_blurred, render_frame_blurred_film,
-};
+pub use output::cryptomatte::{IdMattes, Mattes};
+pub use output::film::{Film, Region};
 pub use settings::{
-    Camera, CloudMaterial, MIN_LIGHT_GRID_CELLS, Noise, Quality, QualityPreset, RenderSettings,
+    CloudMaterial, MIN_LIGHT_GRID_CELLS, NoiseSettings, Quality, QualityPreset, RenderSettings,
     Sky, Sun,
 };
-pub use shading::{InScattered, Shading};
-pub use shot_renderer::{Reuse, ShotRenderer};
-pub use sky::SkyDome;
 
 use crate::blobby::Blob;
 
@@ -127,27 +115,21 @@ impl Passes {
     }
 }
 
-/// Render one frame. Deterministic for a given input at any thread count; the per-pixel
-/// jitter does not change between frames, so identical blobs give identical frames.
+/// A frame's 0-based position in its shot: what the plan, the per-frame settings and seeds are
+/// indexed by (`k` in [`crate::scene::Shot`]). Not the frame *number*, which the files, the
+/// EXR headers and the command line show: `shot.start_frame + index`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct FrameIndex(pub u32);
+
+impl From<u32> for FrameIndex {
+    fn from(k: u32) -> FrameIndex {
+        FrameIndex(k)
+    }
+}
+
+/// Render one frame, an instant of the whole frame, beauty only: [`FrameRenderer::render_once`]
+/// with [`FrameOptions::default`]. Deterministic for a given input at any thread count; the
+/// per-pixel jitter does not change between frames, so identical blobs give identical frames.
 pub fn render_frame(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
-    let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
-    render_medium(settings, &medium, &lights)
-}
-
-/// [`render_frame`] with the render passes ([`Frame::passes`]); the beauty is the same bits.
-pub fn render_frame_with_passes(settings: &RenderSettings, blobs: &[Blob]) -> Frame {
-    let film = Film {
-        passes: true,
-        ..Film::default()
-    };
-    render_frame_film(settings, blobs, &film)
-}
-
-/// [`render_frame`] into `film`: its window only, with the passes and ID mattes it asks for;
-/// every pixel rendered has the full frame's bits.
-pub fn render_frame_film(settings: &RenderSettings, blobs: &[Blob], film: &Film) -> Frame {
-    let medium = BlobMedium::new(settings, blobs);
-    let lights = LightGrid::for_frame(settings, &medium.for_light_grid(settings));
-    render_medium_film(settings, &medium, &lights, film)
+    FrameRenderer::render_once(settings, blobs, &FrameOptions::default()).0
 }

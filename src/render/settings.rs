@@ -3,20 +3,9 @@
 //! field has a default, documented in `scenes/README.md`).
 
 use glam::Vec3;
-use serde::{Deserialize, Serialize};
 
-/// A pinhole camera in world space (the model's units), +Y up.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    /// Eye position.
-    pub position: Vec3,
-    /// Point the camera looks at.
-    pub look_at: Vec3,
-    /// Up hint (need not be orthogonal to the view direction).
-    pub up: Vec3,
-    /// Vertical field of view in degrees.
-    pub fov_deg: f32,
-}
+use crate::render::camera::Camera;
+use serde::{Deserialize, Serialize};
 
 /// The sun: a directional light, given by a direction or by its position in the sky.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -99,10 +88,12 @@ impl Default for Sky {
     }
 }
 
-/// The cumulus billows that displace the cloud's surface, anchored to the blobs.
+/// The settings of the cumulus billows that displace the cloud's surface, anchored to the blobs
+/// (the scene file's `cloud.noise`; the billows themselves are
+/// [`crate::render::medium::noise::Billows`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Noise {
+#[serde(rename = "Noise", deny_unknown_fields, default)]
+pub struct NoiseSettings {
     /// Depth of each octave of billows as a fraction of its wavelength (self-similar: the same
     /// at every scale); the surface is pushed out by up to half of it on a billow's top and cut
     /// in by up to half in a crease (0 = smooth blobs).
@@ -111,7 +102,8 @@ pub struct Noise {
     /// (each further octave is about twice as fine; an octave appears only on parts at least
     /// as large as its wavelength).
     pub frequency: f32,
-    /// Most octaves (at most 8); octaves finer than four pixels of the frame are left out
+    /// Most octaves (at most 8); octaves finer than three pixels of the frame are left out
+    /// ([`crate::render::medium::blobs::FINEST_BILLOW_PIXELS`])
     /// (0 = smooth blobs).
     pub octaves: u32,
     /// Slow evolution of the noise, in cycles per second (0 = frozen; the noise then only
@@ -119,9 +111,9 @@ pub struct Noise {
     pub evolve: f32,
 }
 
-impl Default for Noise {
+impl Default for NoiseSettings {
     fn default() -> Self {
-        Noise {
+        NoiseSettings {
             amplitude: 0.5,
             frequency: 5.0,
             octaves: 8,
@@ -187,7 +179,7 @@ pub struct CloudMaterial {
     /// scattering only, the physically exact core).
     pub multiple_scattering: bool,
     /// The billows.
-    pub noise: Noise,
+    pub noise: NoiseSettings,
     /// A flat cumulus base (`None`, the default: shapes keep their underside).
     pub base: Option<CumulusBase>,
 }
@@ -200,7 +192,7 @@ impl Default for CloudMaterial {
             albedo: 0.95,
             phase_g: 0.75,
             multiple_scattering: true,
-            noise: Noise::default(),
+            noise: NoiseSettings::default(),
             base: None,
         }
     }
@@ -348,7 +340,7 @@ pub struct RenderSettings {
 
 impl RenderSettings {
     /// Cells on the longest side of a light grid over a cloud of `bounds` (world box, as
-    /// [`super::Medium::bounds`] gives): `quality.shadow_grid`, or fewer where its cells would
+    /// [`crate::render::Medium::bounds`] gives): `quality.shadow_grid`, or fewer where its cells would
     /// be finer than `quality.shadow_cell_pixels` of a pixel ([`RenderSettings::pixel_footprint`]),
     /// and at least [`MIN_LIGHT_GRID_CELLS`].
     pub fn light_grid_cells(&self, bounds: Option<(glam::Vec3A, glam::Vec3A)>) -> u32 {

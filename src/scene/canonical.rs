@@ -12,10 +12,10 @@ use glam::{DMat3, DQuat, DVec3, Vec3};
 
 use crate::animate::BlobMotion;
 use crate::blobby::Blob;
-use crate::render::cryptomatte::Mattes;
+use crate::render::Mattes;
 use crate::render::settings::{BasePlane, CumulusBase};
 use crate::render::{
-    Camera, CloudMaterial, Film, Noise, Quality, Region, RenderSettings, Shutter, Sky, Sun,
+    Camera, CloudMaterial, Film, NoiseSettings, Quality, Region, RenderSettings, Shutter, Sky, Sun,
     TimeSample,
 };
 
@@ -255,9 +255,9 @@ impl Canonical for Sky {
     }
 }
 
-impl Canonical for Noise {
+impl Canonical for NoiseSettings {
     fn encode(&self, e: &mut Encoder) {
-        let Noise {
+        let NoiseSettings {
             amplitude,
             frequency,
             octaves,

@@ -97,7 +97,7 @@ impl Shot {
         self.remove_stale_temps()?;
         let film = self.film()?.clone();
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
-        let mut renderer = crate::render::ShotRenderer::new();
+        let mut renderer = crate::render::FrameRenderer::new();
         // A frame's files are encoded and written on their own thread while the next frame
         // renders (one at a time, in order; its error stops the shot before the next write).
         std::thread::scope(|scope| -> Result<(), SceneError> {
@@ -131,16 +131,12 @@ impl Shot {
                     on_frame(&skipped(frame, last));
                     continue;
                 }
-                let own;
-                let image = if render {
-                    own = self.own_march(k, &settings, &blobs)?;
-                    Some(match &own {
-                        Some(frame) => frame,
-                        None => renderer.render(&settings, &blobs),
-                    })
-                } else {
-                    None
+                let shutter = self.shutter(k, settings.quality.time_samples)?;
+                let options = crate::render::FrameOptions {
+                    shutter: shutter.as_ref(),
+                    film: &film,
                 };
+                let image = render.then(|| renderer.render(&settings, &blobs, &options));
                 let rendered = Instant::now();
                 finish_writing(&mut writing)?;
                 let written = Instant::now();
@@ -221,27 +217,6 @@ impl Shot {
 }
 
 impl Shot {
-    /// Frame `k` when it needs its own march: a region, passes and mattes (no reuse of the last
-    /// frame's light grid or frame), or an open shutter with a moving cloud (blurred). `None`:
-    /// the shot's renderer makes it.
-    fn own_march(
-        &self,
-        k: u32,
-        settings: &crate::render::RenderSettings,
-        blobs: &[crate::blobby::Blob],
-    ) -> Result<Option<crate::render::Frame>, SceneError> {
-        let film = self.film()?;
-        Ok(
-            if let Some(shutter) = self.shutter(k, settings.quality.time_samples)? {
-                Some(crate::render::render_frame_blurred_film(settings, blobs, &shutter, film).0)
-            } else if *film != crate::render::Film::default() {
-                Some(crate::render::render_frame_film(settings, blobs, film))
-            } else {
-                None
-            },
-        )
-    }
-
     /// Remove the temporary files that killed renders left in the frames folder (those of
     /// frames no running render holds; [`super::lock::remove_stale_temps`]); returns how many.
     pub fn remove_stale_temps(&self) -> Result<usize, SceneError> {

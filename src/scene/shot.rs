@@ -16,7 +16,7 @@ use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
-use crate::render::cryptomatte::{self, Mattes};
+use crate::render::output::cryptomatte::{self, Mattes};
 use crate::render::settings::BasePlane;
 use crate::render::{self, Film, Frame, Quality, Region, RenderSettings};
 
@@ -289,7 +289,8 @@ impl Shot {
     }
 
     /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
-    pub fn render_frame(&self, k: u32) -> Result<Frame, SceneError> {
+    pub fn render_frame(&self, k: impl Into<render::FrameIndex>) -> Result<Frame, SceneError> {
+        let render::FrameIndex(k) = k.into();
         self.image(k, &self.settings(k)?, &self.blobs(k)?)
     }
 
@@ -307,7 +308,8 @@ impl Shot {
         }
         let plan = &self.prepared()?.plan;
         let t = plan.timeline().time(k as usize);
-        let (centres, stratum) = render::motion_blur::strata(spec.shutter, time_samples, spec.fps);
+        let (centres, stratum) =
+            render::integrator::motion_blur::strata(spec.shutter, time_samples, spec.fps);
         let samples = centres
             .into_iter()
             .map(|offset| {
@@ -323,20 +325,21 @@ impl Shot {
         Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
     }
 
-    /// Render 0-based frame `k` from its `settings` and `blobs`: through the open shutter when
-    /// the cloud moves ([`render::render_frame_blurred`]), else the frame as it stands (so a
-    /// closed shutter, or a cloud holding still, gives the same bits).
+    /// Render 0-based frame `k` from its `settings` and `blobs` ([`render::FrameRenderer`]):
+    /// through the open shutter when the cloud moves, else the frame as it stands (so a closed
+    /// shutter, or a cloud holding still, gives the same bits), into the shot's film.
     pub fn image(
         &self,
         k: u32,
         settings: &RenderSettings,
         blobs: &[Blob],
     ) -> Result<Frame, SceneError> {
-        let film = self.film()?;
-        Ok(match self.shutter(k, settings.quality.time_samples)? {
-            Some(shutter) => render::render_frame_blurred_film(settings, blobs, &shutter, film).0,
-            None => render::render_frame_film(settings, blobs, film),
-        })
+        let shutter = self.shutter(k, settings.quality.time_samples)?;
+        let options = render::FrameOptions {
+            shutter: shutter.as_ref(),
+            film: self.film()?,
+        };
+        Ok(render::FrameRenderer::render_once(settings, blobs, &options).0)
     }
 }
 

@@ -708,7 +708,7 @@ type Ranks = Vec<Vec<(f32, f32)>>;
 /// The Cryptomatte layer of an EXR decoded: the manifest (name → id), and per pixel the
 /// `(id, coverage)` ranks; checks the header's keys and that every id is the hash of its name.
 fn cryptomatte(path: &Path) -> (BTreeMap<String, f32>, Ranks) {
-    use nephele::render::cryptomatte::{layer_key, name_id};
+    use nephele::render::output::cryptomatte::{layer_key, name_id};
     let layer = exr_support::read_first_layer(path);
     let key = layer_key("CryptoObject");
     let attr = |what: &str| text_attr(path, &format!("cryptomatte/{key}/{what}"));

@@ -30,8 +30,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use nephele::render::camera::CameraRays;
-use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
-use nephele::render::{BlobMedium, LightGrid, RenderSettings, SkyDome, render_medium};
+use nephele::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
+use nephele::render::{BlobMedium, Film, LightGrid, RenderSettings, SkyDome, render_medium};
 use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// The Python interpreter with mitsuba, if any.
@@ -179,9 +179,9 @@ fn write_inputs(
                 sun_dir: s.sun.travel_dir().into(),
                 base: &lg,
             };
-            render_medium(&s, &m, &l)
+            render_medium(&s, &m, &l, &Film::default())
         } else {
-            render_medium(&s, &m, &lg)
+            render_medium(&s, &m, &lg, &Film::default())
         };
         times[idx] = start.elapsed().as_secs_f64();
         let name = if ms {
@@ -200,10 +200,11 @@ fn write_inputs(
             &s,
             &dense,
             &grid_medium::ExactLights::new(&dense, light_dir),
+            &Film::default(),
         )
     } else {
         let lights = LightGrid::build(&dense, light_dir, s.quality.shadow_grid);
-        render_medium(&s, &dense, &lights)
+        render_medium(&s, &dense, &lights, &Film::default())
     };
     write_f32(&dir.join("nephele_grid_ss.f32"), composite(&s, &same_grid));
     // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map

@@ -6,11 +6,25 @@ use crate::temp_support;
 
 use glam::{DQuat, DVec3, Vec3};
 use nephele::blobby::Blob;
-use nephele::render::motion_blur::strata;
+use nephele::render::integrator::motion_blur::strata;
 use nephele::render::{
-    Camera, CloudMaterial, Frame, Quality, RenderSettings, Shutter, Sky, Sun, TimeSample,
-    render_frame, render_frame_blurred,
+    BlurReport, Camera, CloudMaterial, Frame, FrameOptions, FrameRenderer, Quality, RenderSettings,
+    Shutter, Sky, Sun, TimeSample, render_frame,
 };
+
+/// `blobs` rendered through `shutter` (the frame renderer with an open shutter).
+fn render_frame_blurred(
+    settings: &RenderSettings,
+    blobs: &[Blob],
+    shutter: &Shutter,
+) -> (Frame, BlurReport) {
+    let options = FrameOptions {
+        shutter: Some(shutter),
+        ..FrameOptions::default()
+    };
+    let (frame, report) = FrameRenderer::render_once(settings, blobs, &options);
+    (frame, report.blur.expect("the cloud moves: blurred"))
+}
 
 /// A small cloud of overlapping ellipsoids about 1.2 units across around `at`.
 fn cloud(at: DVec3) -> Vec<Blob> {

@@ -14,11 +14,11 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
-use nephele::render::phase::cloud_phase;
+use nephele::render::light::phase::cloud_phase;
 use nephele::render::{
-    BlobMedium, Camera, CloudMaterial, Homogeneous, HomogeneousLights, LightGrid, Lights, Noise,
-    Quality, RenderSettings, Shape, Sky, Sun, output, render_frame, render_medium,
-    render_medium_unshaded,
+    BlobMedium, Camera, CloudMaterial, Film, Homogeneous, HomogeneousLights, LightGrid,
+    NoiseSettings, Quality, RenderSettings, ShadowDepths, Shape, Sky, Sun, output, render_frame,
+    render_medium, render_medium_unshaded,
 };
 use rand::{RngExt, SeedableRng};
 
@@ -109,9 +109,9 @@ fn hard_ball(s: &mut RenderSettings, density: f32) -> Blob {
     s.cloud = CloudMaterial {
         density,
         edge: 0.0,
-        noise: Noise {
+        noise: NoiseSettings {
             amplitude: 0.0,
-            ..Noise::default()
+            ..NoiseSettings::default()
         },
         ..CloudMaterial::default()
     };
@@ -270,7 +270,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
         medium,
         sun_dir: Vec3A::Z,
     };
-    let frame = render_medium(&s, &medium, &lights);
+    let frame = render_medium(&s, &medium, &lights, &Film::default());
     let cam = nephele::render::camera::CameraRays::new(&s.camera, 9, 9);
     for (x, y) in [(4, 4), (0, 0), (8, 3), (2, 7)] {
         let dir = cam.pixel_ray(x, y).dir;
@@ -335,11 +335,12 @@ fn seeded_frame_is_pinned_and_thread_count_independent() {
     );
 }
 
-/// A shot's renderer gives `render_frame`'s bits in every case of reuse: a hold (the whole
-/// frame), a still cloud seen by a moving camera (the light grid), a changed cloud (buffers).
+/// The frame renderer gives a fresh renderer's bits in every case of reuse: a hold (the whole
+/// frame), a still cloud seen by a moving camera (the light grid), a changed cloud (buffers),
+/// and a film with a region and passes (its own frame, the light grid still shared).
 #[test]
-fn shot_renderer_matches_render_frame_bit_for_bit() {
-    use nephele::render::{Reuse, ShotRenderer};
+fn frame_renderer_reuses_without_changing_a_bit() {
+    use nephele::render::{Film, FrameOptions, FrameRenderer, Region, Reuse};
     let a = test_cloud(60, 4);
     let mut b = a.clone();
     b[3].center.x += 0.05;
@@ -348,29 +349,50 @@ fn shot_renderer_matches_render_frame_bit_for_bit() {
     moved.camera.position.x += 0.2;
     let mut later = s.clone();
     later.time = 1.5;
-    let mut renderer = ShotRenderer::new();
-    for (settings, blobs, expect) in [
-        (&s, &a, Reuse::Buffers),
-        (&later, &a, Reuse::Frame),
-        (&moved, &a, Reuse::LightGrid),
-        (&moved, &b, Reuse::Buffers),
-        (&s, &a, Reuse::Buffers),
+    let beauty = Film::default();
+    let window = Film {
+        region: Some(Region {
+            x0: 5,
+            y0: 3,
+            x1: 37,
+            y1: 20,
+        }),
+        passes: true,
+        mattes: None,
+    };
+    let mut renderer = FrameRenderer::new();
+    for (settings, blobs, film, expect) in [
+        (&s, &a, &beauty, Reuse::Buffers),
+        (&later, &a, &beauty, Reuse::Frame),
+        (&moved, &a, &beauty, Reuse::LightGrid),
+        (&moved, &a, &window, Reuse::LightGrid),
+        (&moved, &a, &window, Reuse::Frame),
+        (&moved, &b, &beauty, Reuse::Buffers),
+        (&s, &a, &beauty, Reuse::Buffers),
     ] {
-        let (frame, reuse) = renderer.render_reporting(settings, blobs);
-        assert_eq!(reuse, expect);
-        assert_eq!(
-            frame_hash(frame),
-            frame_hash(&render_frame(settings, blobs))
-        );
+        let options = FrameOptions {
+            shutter: None,
+            film,
+        };
+        let (frame, report) = renderer.render_reporting(settings, blobs, &options);
+        assert_eq!(report.reuse, expect);
+        let fresh = FrameRenderer::render_once(settings, blobs, &options).0;
+        assert_eq!(frame, &fresh);
+        if film == &beauty {
+            assert_eq!(
+                frame_hash(frame),
+                frame_hash(&render_frame(settings, blobs))
+            );
+        }
     }
     // With evolving noise, time changes the cloud: nothing but buffers is reused.
     let mut evolving = s.clone();
     evolving.cloud.noise.evolve = 0.5;
     let mut evolved = evolving.clone();
     evolved.time = 1.0;
-    renderer.render(&evolving, &a);
-    let (frame, reuse) = renderer.render_reporting(&evolved, &a);
-    assert_eq!(reuse, Reuse::Buffers);
+    renderer.render(&evolving, &a, &FrameOptions::default());
+    let (frame, report) = renderer.render_reporting(&evolved, &a, &FrameOptions::default());
+    assert_eq!(report.reuse, Reuse::Buffers);
     assert_eq!(frame_hash(frame), frame_hash(&render_frame(&evolved, &a)));
 }
 
@@ -467,7 +489,7 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     counters::take();
     let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &lattice));
     let light = counters::take();
-    let (_, march_bytes) = allocated(|| render_medium(s, &m, &grid));
+    let (_, march_bytes) = allocated(|| render_medium(s, &m, &grid, &Film::default()));
     let march = counters::take();
     let size = grid.as_ref().map(|g| g.size());
     let sun_dir = Vec3A::from(s.sun.travel_dir());
@@ -478,7 +500,10 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
     let sun_s = median(
         (0..3)
             .map(|_| {
-                time(|| nephele::render::sun_grid::SunGrid::build(&lattice, sun_dir, h, None)).1
+                time(|| {
+                    nephele::render::light::sun_depth::SunGrid::build(&lattice, sun_dir, h, None)
+                })
+                .1
             })
             .collect(),
     );
@@ -557,7 +582,7 @@ fn bench_frame_times() {
         let grid = LightGrid::for_frame(&s, &lattice);
         let march = median(
             (0..runs)
-                .map(|_| time(|| render_medium(&s, &m, &grid)).1)
+                .map(|_| time(|| render_medium(&s, &m, &grid, &Film::default())).1)
                 .collect(),
         );
         let dens = median(

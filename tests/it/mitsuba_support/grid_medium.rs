@@ -6,7 +6,7 @@
 use glam::Vec3A;
 use nephele::export::grid::{DensityGrid, Leaf};
 use nephele::render::camera::{Frustum, Ray};
-use nephele::render::{LightDepths, Lights, Medium};
+use nephele::render::{LightDepths, Medium, ShadowDepths};
 
 /// The grid, dense over its active box.
 pub struct DenseGrid {
@@ -145,9 +145,9 @@ impl<'a> ExactLights<'a> {
     }
 }
 
-impl Lights for ExactLights<'_> {
+impl ShadowDepths for ExactLights<'_> {
     fn depths(&self, x: Vec3A) -> LightDepths {
-        let dirs = nephele::render::sky_light::directions();
+        let dirs = nephele::render::light::sky_cells::directions();
         let sun = self.grid.depth(x, -self.sun_dir);
         LightDepths {
             sun,
@@ -166,7 +166,7 @@ pub struct ExactSun<'a, L> {
     pub base: &'a L,
 }
 
-impl<L: Lights> Lights for ExactSun<'_, L> {
+impl<L: ShadowDepths> ShadowDepths for ExactSun<'_, L> {
     fn depths(&self, x: Vec3A) -> LightDepths {
         let mut d = self.base.depths(x);
         d.sun = self.grid.depth(x, -self.sun_dir);

@@ -25,7 +25,11 @@
 //! transparent outside the region.
 //!
 //! ID mattes ([`Frame::mattes`]): channels `CryptoObject00.R/G/B/A`, … and the
-//! `cryptomatte/<key>/…` header attributes of [`super::cryptomatte`].
+//! `cryptomatte/<key>/…` header attributes of [`crate::render::output::cryptomatte`].
+
+pub mod color;
+pub mod cryptomatte;
+pub mod film;
 
 use std::io::Cursor;
 use std::path::Path;
@@ -33,9 +37,9 @@ use std::path::Path;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::camera::CameraRays;
-use super::color::ColorSpace;
-use super::{Frame, RenderSettings};
+use crate::render::camera::CameraRays;
+use crate::render::output::color::ColorSpace;
+use crate::render::{Frame, RenderSettings};
 
 /// Write `frame` as an OpenEXR file with R, G, B, A (and Z depth) channels, atomically.
 pub fn write_exr(path: &Path, frame: &Frame) -> std::io::Result<()> {
@@ -72,7 +76,7 @@ impl FrameMetadata {
     /// The matrices of `camera` for a `width × height` image, as the renderer casts its rays
     /// ([`CameraRays`]), and the provenance strings.
     pub fn new(
-        camera: &super::Camera,
+        camera: &crate::render::Camera,
         width: u32,
         height: u32,
         strings: Vec<(String, String)>,
@@ -133,7 +137,7 @@ impl CameraFrame {
     /// The frame of `camera` for a `width × height` image, read off the renderer's own rays
     /// ([`CameraRays`]): the centre ray is the view direction, and the rays through the right
     /// and top edge midpoints give the right and up axes with their image-plane scales.
-    pub fn new(camera: &super::Camera, width: u32, height: u32) -> CameraFrame {
+    pub fn new(camera: &crate::render::Camera, width: u32, height: u32) -> CameraFrame {
         let rays = CameraRays::new(camera, width, height);
         let (w, h) = (width.max(1) as f32, height.max(1) as f32);
         let forward = glam::DVec3::from(Vec3::from(rays.forward));
@@ -187,7 +191,7 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     // The data window: the region rendered, or the whole frame.
     let window = frame
         .region
-        .unwrap_or(super::Region::full(frame.width, frame.height));
+        .unwrap_or(crate::render::Region::full(frame.width, frame.height));
     let size = (window.width() as usize, window.height() as usize);
     let pixels: Vec<usize> = (window.y0..window.y1)
         .flat_map(|y| (window.x0..window.x1).map(move |x| (y * frame.width + x) as usize))
@@ -348,7 +352,7 @@ pub fn write_png(path: &Path, frame: &Frame, settings: &RenderSettings) -> std::
 pub fn tonemapped(frame: &Frame, settings: &RenderSettings) -> image::RgbImage {
     let cam = CameraRays::new(&settings.camera, frame.width, frame.height);
     let gain = settings.exposure.exp2();
-    let dome = super::sky::SkyDome::new(&settings.sky, &settings.sun);
+    let dome = crate::render::light::sky_dome::SkyDome::new(&settings.sky, &settings.sun);
     let w = frame.width as usize;
     let mut bytes = vec![0u8; 3 * w * frame.height as usize];
     bytes

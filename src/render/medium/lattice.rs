@@ -1,6 +1,6 @@
 //! Regular lattices over a medium and the rays that sample it: the one place where a medium's
-//! extinction is sampled onto nodes, for the light grid ([`super::light_grid`], world-aligned
-//! rows; [`super::sun_grid`]) and the volume export (`crate::export::grid`, voxel columns).
+//! extinction is sampled onto nodes, for the light grid ([`crate::render::light::grid`], world-aligned
+//! rows; [`crate::render::light::sun_depth`]) and the volume export (`crate::export::grid`, voxel columns).
 //!
 //! In: a [`Medium`] and a bundle of parallel columns. Out: per column, the medium prepared for
 //! that ray ([`Medium::begin_ray`]: its intervals known), after one [`Medium::begin_tile`] for
@@ -14,8 +14,8 @@ use std::ops::Range;
 
 use glam::{DVec3, Vec3A};
 
-use super::camera::{Frustum, Ray};
-use super::medium::Medium;
+use crate::render::camera::{Frustum, Ray};
+use crate::render::medium::Medium;
 
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.

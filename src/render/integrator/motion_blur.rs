@@ -13,10 +13,14 @@
 //! ([`BlobMedium::moving`], [`Medium::set_time_offset`]), so the time samples are continuous,
 //! not `T` ghosts. All strata march with the frame's coarse step.
 //!
-//! Light: the light grid is built once, from the cloud at the frame's time, and lights every
-//! time sample — unless a blob travels more than [`MAX_LIGHT_SHIFT`] of the cloud's extent
-//! (in light-grid cells, [`BlurReport::shift_cells`]) within the shutter (the counter in [`BlurReport::shift_cells`]); then each stratum gets a grid of its
-//! own (all on one lattice over the whole shutter), since shadows cells off would show.
+//! Light: one light grid, the frame's, lights every time sample — unless a blob travels more
+//! than [`MAX_LIGHT_SHIFT`] of the cloud's extent (in light-grid cells,
+//! [`BlurReport::shift_cells`]) within the shutter; then each stratum gets a grid of its own (all
+//! on one lattice over the whole shutter), since shadows cells off would show. The grids are
+//! built by the frame renderer ([`crate::render::integrator::frame_renderer`]) from each medium's light-grid copy,
+//! as an unblurred frame's are (before, motion blur built them from the full-detail medium:
+//! at 960×540 `Final`, a shutter of 0.5 on a moving aggregation, 2 of 255 levels at most in the
+//! 8-bit frame).
 //!
 //! Cost: the rays of a pixel are its time samples, so with one ray per pixel (`Final`) each time
 //! sample costs one more march of the frame, plus one blob conversion (the light grid is shared);
@@ -24,20 +28,20 @@
 //! the conversion (README, "Motion blur"). A blurred pixel already traces several rays, so
 //! `edge_samples` adds none.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 use rand::RngExt;
 
-use super::Frame;
-use super::blobs::BlobMedium;
-use super::camera::{CameraRays, Ray};
-use super::film::Film;
-use super::integrate::{PixelSum, pixel_sample, render_film, shaded_march};
-use super::lattice::GridShape;
-use super::light_grid::LightGrid;
-use super::medium::Medium;
-use super::settings::RenderSettings;
-use super::shading::Shading;
 use crate::blobby::Blob;
+use crate::render::Frame;
+use crate::render::camera::{CameraRays, Ray};
+use crate::render::integrator::{PixelSum, pixel_sample, render_film, shaded_march};
+use crate::render::light::grid::LightGrid;
+use crate::render::light::shading::Shading;
+use crate::render::medium::Medium;
+use crate::render::medium::blobs::BlobMedium;
+use crate::render::medium::lattice::GridShape;
+use crate::render::output::film::Film;
+use crate::render::settings::RenderSettings;
 use crate::rng::{Stream, item_rng, key};
 
 /// Largest blob travel from the frame's time to the shutter's ends, as a fraction of the light
@@ -88,78 +92,74 @@ pub struct BlurReport {
     pub light_grids: usize,
 }
 
-/// Render one frame through `shutter` (see the module doc). `settings.time` is the frame's
-/// time; each stratum's noise evolves at its own time.
-pub fn render_frame_blurred(
-    settings: &RenderSettings,
-    frame_blobs: &[Blob],
-    shutter: &Shutter,
-) -> (Frame, BlurReport) {
-    render_frame_blurred_film(settings, frame_blobs, shutter, &Film::default())
+/// A blurred frame's time samples and how they are lit, worked out by [`Blob`] travel; the
+/// light grids themselves are built by the frame renderer ([`crate::render::integrator::frame_renderer`]).
+pub(crate) struct Blur {
+    /// The medium of each stratum, moving, marched with the frame's coarse step.
+    pub(crate) slices: Vec<BlobMedium>,
+    /// `Some(box)` when each stratum gets a light grid of its own, all over `box` (the frame's
+    /// and every stratum's supports; `None` inside when all are empty); `None` when the frame's
+    /// one grid lights every stratum.
+    pub(crate) stratum_bounds: Option<Option<(Vec3A, Vec3A)>>,
+    /// Largest blob travel within the shutter, in light-grid cells.
+    shift_cells: f32,
 }
 
-/// [`render_frame_blurred`] into `film` (its window only, with the passes and ID mattes it asks
-/// for, accumulated over every ray of the shutter).
-pub fn render_frame_blurred_film(
-    settings: &RenderSettings,
-    frame_blobs: &[Blob],
-    shutter: &Shutter,
-    film: &Film,
-) -> (Frame, BlurReport) {
-    let frame_medium = BlobMedium::new(settings, frame_blobs);
-    let half = (0.5 * shutter.stratum) as f32;
-    let slices: Vec<BlobMedium> = shutter
-        .samples
-        .iter()
-        .map(|s| {
-            let mut at = settings.clone();
-            at.time = (settings.time as f64 + s.offset) as f32;
-            let mut m = BlobMedium::moving(&at, &s.blobs, &s.velocity, half);
-            m.set_step(frame_medium.step());
-            m
-        })
-        .collect();
-    let cells = settings.light_grid_cells(frame_medium.bounds());
-    let shift = shift_cells(cells, &frame_medium, frame_blobs, shutter);
-    let lights: Vec<Option<LightGrid>> = if shift > MAX_LIGHT_SHIFT * cells.max(2) as f32 {
-        // One lattice over the frame and every stratum, so a part that holds still is sampled
-        // at the same nodes in each.
-        let bounds = std::iter::once(&frame_medium)
-            .chain(&slices)
-            .filter_map(|m| m.bounds())
-            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)));
-        slices
+impl Blur {
+    /// The time samples of `shutter` for the frame whose medium is `frame_medium` (from
+    /// `frame_blobs`, `settings.time` the frame's time; each stratum's noise evolves at its own
+    /// time), and whether one light grid lights them all (see the module doc).
+    pub(crate) fn new(
+        settings: &RenderSettings,
+        frame_medium: &BlobMedium,
+        frame_blobs: &[Blob],
+        shutter: &Shutter,
+    ) -> Blur {
+        let half = (0.5 * shutter.stratum) as f32;
+        let slices: Vec<BlobMedium> = shutter
+            .samples
             .iter()
-            .map(|m| {
-                bounds.and_then(|bounds| {
-                    LightGrid::for_frame(settings, &Bounded { medium: m, bounds })
-                })
+            .map(|s| {
+                let mut at = settings.clone();
+                at.time = (settings.time as f64 + s.offset) as f32;
+                let mut m = BlobMedium::moving(&at, &s.blobs, &s.velocity, half);
+                m.set_step(frame_medium.step());
+                m
             })
-            .collect()
-    } else {
-        vec![LightGrid::for_frame(settings, &frame_medium)]
-    };
-    let report = BlurReport {
-        shift_cells: shift,
-        light_grids: lights.len(),
-    };
-    if slices.is_empty() {
-        return (
-            super::render_medium_film(settings, &frame_medium, &lights[0], film),
-            report,
-        );
+            .collect();
+        let cells = settings.light_grid_cells(frame_medium.bounds());
+        let shift = shift_cells(cells, frame_medium, frame_blobs, shutter);
+        let stratum_bounds = (shift > MAX_LIGHT_SHIFT * cells.max(2) as f32).then(|| {
+            // One lattice over the frame and every stratum, so a part that holds still is
+            // sampled at the same nodes in each.
+            std::iter::once(frame_medium)
+                .chain(&slices)
+                .filter_map(|m| m.bounds())
+                .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+        });
+        Blur {
+            slices,
+            stratum_bounds,
+            shift_cells: shift,
+        }
     }
-    (
-        render_slices(settings, &slices, &lights, shutter.stratum as f32, film),
-        report,
-    )
+
+    /// The record of this blur lit by `light_grids` grids.
+    pub(crate) fn report(&self, light_grids: usize) -> BlurReport {
+        BlurReport {
+            shift_cells: self.shift_cells,
+            light_grids,
+        }
+    }
 }
 
 /// A medium reporting wider bounds than its own (every stratum's light grid then spans the same
 /// box, the whole shutter's); all else is the medium's.
-struct Bounded<'a, M> {
-    medium: &'a M,
-    bounds: (glam::Vec3A, glam::Vec3A),
+pub(crate) struct Bounded<'a, M> {
+    /// The medium.
+    pub(crate) medium: &'a M,
+    /// The box it reports.
+    pub(crate) bounds: (Vec3A, Vec3A),
 }
 
 impl<M: Medium> Medium for Bounded<'_, M> {
@@ -169,7 +169,7 @@ impl<M: Medium> Medium for Bounded<'_, M> {
         self.medium.scratch()
     }
 
-    fn begin_tile(&self, frustum: &super::camera::Frustum, s: &mut Self::Scratch) {
+    fn begin_tile(&self, frustum: &crate::render::camera::Frustum, s: &mut Self::Scratch) {
         self.medium.begin_tile(frustum, s)
     }
 
@@ -241,7 +241,7 @@ struct Scratch<S> {
 
 /// The tiles of a blurred frame: every pixel's rays spread over the strata of `slices`, lit by
 /// `lights[j]` (or `lights[0]` for all), into `film`.
-fn render_slices(
+pub(crate) fn render_slices(
     settings: &RenderSettings,
     slices: &[BlobMedium],
     lights: &[Option<LightGrid>],

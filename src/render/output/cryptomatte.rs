@@ -8,13 +8,13 @@
 //!
 //! Coverage: each march sample's share of the pixel's opacity, `T·(1 − e^{−σh})` (what it adds
 //! to alpha), goes to the matte of the blob whose field term dominates the density there
-//! ([`super::Medium::label`]); a pixel's weights are summed over all its rays in a small fixed
+//! ([`crate::render::Medium::label`]); a pixel's weights are summed over all its rays in a small fixed
 //! array (`Coverage`, no allocation) and divided by the number of rays, so a pixel's
 //! coverages sum to its alpha (1 where the cloud is opaque), as the spec's ranking filter with
 //! non-refractive transparency does. They are ranked by coverage (largest first, ties by
 //! matte) and the first [`RANKS`] kept.
 //!
-//! EXR layout (written by [`super::output`]): channels `{layer}00.R/G/B/A`,
+//! EXR layout (written by [`crate::render::output`]): channels `{layer}00.R/G/B/A`,
 //! `{layer}01.R/G/B/A`, … — each RGBA holds two ranks as `(id, coverage, id, coverage)`, the
 //! spec's default of 6 ranks in 3 channel sets; an empty rank is `(0, 0)`. Header:
 //! `cryptomatte/<key>/name` (the layer), `/hash` = `MurmurHash3_32`, `/conversion` =
@@ -66,7 +66,7 @@ impl Rank {
     };
 }
 
-/// A frame's ID mattes: the names and each pixel's ranks (row-major, like [`super::Frame`]).
+/// A frame's ID mattes: the names and each pixel's ranks (row-major, like [`crate::render::Frame`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IdMattes {
     /// The Cryptomatte layer name.
@@ -191,7 +191,7 @@ pub fn murmur3_32(data: &[u8], seed: u32) -> u32 {
 
 /// One pixel's matte weights, summed over its rays (fixed size: no allocation per pixel).
 #[derive(Clone, Debug)]
-pub(super) struct Coverage<'a> {
+pub(crate) struct Coverage<'a> {
     of_blob: &'a [u32],
     mattes: [u32; SLOTS],
     weight: [f32; SLOTS],
@@ -200,7 +200,7 @@ pub(super) struct Coverage<'a> {
 
 impl<'a> Coverage<'a> {
     /// No weights yet; blobs map to mattes through `of_blob`.
-    pub(super) fn new(of_blob: &'a [u32]) -> Coverage<'a> {
+    pub(crate) fn new(of_blob: &'a [u32]) -> Coverage<'a> {
         Coverage {
             of_blob,
             mattes: [NO_MATTE; SLOTS],
@@ -211,7 +211,7 @@ impl<'a> Coverage<'a> {
 
     /// Add opacity `w` of a sample whose density blob `blob` dominates.
     #[inline]
-    pub(super) fn add(&mut self, blob: u32, w: f32) {
+    pub(crate) fn add(&mut self, blob: u32, w: f32) {
         let matte = self.of_blob.get(blob as usize).copied().unwrap_or(NO_MATTE);
         if matte == NO_MATTE {
             return;
@@ -226,7 +226,7 @@ impl<'a> Coverage<'a> {
     }
 
     /// The ranks of the mean over `rays` rays: largest coverage first (ties: lower matte).
-    pub(super) fn ranks(&self, rays: u32) -> [Rank; RANKS] {
+    pub(crate) fn ranks(&self, rays: u32) -> [Rank; RANKS] {
         let mut order: [usize; SLOTS] = std::array::from_fn(|k| k);
         let order = &mut order[..self.n];
         order.sort_by(|&a, &b| {

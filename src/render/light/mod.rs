@@ -2,19 +2,27 @@
 //! sample, and who can answer it.
 //!
 //! In: a world point. Out: [`LightDepths`] toward the sun and each sky cell of
-//! [`super::sky_light`]. The production answer is the per-frame light grid
-//! ([`super::light_grid::LightGrid`], built from any [`super::Medium`]); [`HomogeneousLights`]
+//! [`crate::render::light::sky_cells`]. The production answer is the per-frame light grid
+//! ([`crate::render::light::grid::LightGrid`], built from any [`crate::render::Medium`]); [`HomogeneousLights`]
 //! answers exactly for the analytic test media, [`Unshadowed`] for nothing in the way. Keeping
 //! this apart from the medium lets a light grid built from one medium (e.g. the cloud at the
 //! frame's time) light the march through another (the cloud at a motion-blur sample time).
 
+pub mod grid;
+pub mod phase;
+pub mod shading;
+pub mod sky_cells;
+pub mod sky_depth;
+pub mod sky_dome;
+pub mod sun_depth;
+
 use glam::Vec3A;
 
-use super::medium::Homogeneous;
-use super::sky_light::{SKY_DIRECTIONS, directions};
+use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions};
+use crate::render::medium::Homogeneous;
 
 /// Optical depths from a point toward the lights: the sun, and each sky cell of
-/// [`super::sky_light`] (in the order of [`directions`]).
+/// [`crate::render::light::sky_cells`] (in the order of [`directions`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightDepths {
     /// Toward the sun.
@@ -32,7 +40,7 @@ impl LightDepths {
 }
 
 /// Something that knows the optical depths toward the lights anywhere in a frame.
-pub trait Lights: Sync {
+pub trait ShadowDepths: Sync {
     /// Optical depths from `x` toward the sun and the sky cells.
     fn depths(&self, x: Vec3A) -> LightDepths;
 }
@@ -41,7 +49,7 @@ pub trait Lights: Sync {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Unshadowed;
 
-impl Lights for Unshadowed {
+impl ShadowDepths for Unshadowed {
     #[inline]
     fn depths(&self, _: Vec3A) -> LightDepths {
         LightDepths::ZERO
@@ -49,7 +57,7 @@ impl Lights for Unshadowed {
 }
 
 /// `None` (e.g. no light grid for an empty cloud) is [`Unshadowed`].
-impl<L: Lights> Lights for Option<L> {
+impl<L: ShadowDepths> ShadowDepths for Option<L> {
     #[inline]
     fn depths(&self, x: Vec3A) -> LightDepths {
         self.as_ref().map_or(LightDepths::ZERO, |l| l.depths(x))
@@ -66,7 +74,7 @@ pub struct HomogeneousLights {
     pub sun_dir: Vec3A,
 }
 
-impl Lights for HomogeneousLights {
+impl ShadowDepths for HomogeneousLights {
     fn depths(&self, x: Vec3A) -> LightDepths {
         let m = &self.medium;
         let depth = |dir: Vec3A| {

@@ -1,10 +1,10 @@
 //! The shader: how much sunlight and skylight a cloud sample scatters toward the eye, given
 //! the optical depths toward the lights at that sample (from the light grid,
-//! [`super::light_grid`], or any other [`super::lights::Lights`]).
+//! [`crate::render::light::grid`], or any other [`crate::render::light::ShadowDepths`]).
 //!
 //! In: [`RenderSettings`]. Out: [`Shading`], which the integrator evaluates per ray (phase
 //! weights, which depend only on the ray direction) and per sample ([`InScattered`]: the sun's
-//! single scattering, the sky cells' single scattering of [`super::sky_light`] and the
+//! single scattering, the sky cells' single scattering of [`crate::render::light::sky_cells`] and the
 //! multiple-scattering octaves, kept apart so that render passes can write them separately).
 //!
 //! - Wrenninge, Kulla & Lundqvist (2013), "Oz: the great and volumetric", SIGGRAPH Talks: the
@@ -14,12 +14,12 @@
 
 use glam::Vec3A;
 
-use super::fast_exp::{exp_neg, exp_neg_all};
-use super::lights::LightDepths;
-use super::phase::cloud_phase;
-use super::settings::RenderSettings;
-use super::sky::SkyDome;
-use super::sky_light::{DOWN, SKY_DIRECTIONS, SkyLight, UP};
+use crate::render::fast_exp::{exp_neg, exp_neg_all};
+use crate::render::light::LightDepths;
+use crate::render::light::phase::cloud_phase;
+use crate::render::light::sky_cells::{DOWN, SKY_DIRECTIONS, SkyLight, UP};
+use crate::render::light::sky_dome::SkyDome;
+use crate::render::settings::RenderSettings;
 
 /// Radiance in-scattered toward the eye per unit scattering coefficient at one sample, by
 /// component: [`InScattered::sun`] + [`InScattered::sky`] + [`InScattered::multiple`] =

@@ -10,12 +10,12 @@
 use glam::Vec3A;
 
 /// Multipliers of the lattice hash, one per axis.
-pub(super) const HASH_AXES: [u32; 3] = [0x8DA6_B343, 0xD816_3841, 0xCB1A_B31F];
+pub(crate) const HASH_AXES: [u32; 3] = [0x8DA6_B343, 0xD816_3841, 0xCB1A_B31F];
 
 /// The lattice hash's mixing rounds (a few multiply-xorshifts, well mixed in the low bits) of
 /// `h = i·A ^ j·B ^ k·C`.
 #[inline]
-pub(super) fn mix(mut h: u32) -> u32 {
+pub(crate) fn mix(mut h: u32) -> u32 {
     h ^= h >> 15;
     h = h.wrapping_mul(0x2C1B_3C6D);
     h ^= h >> 12;
@@ -33,7 +33,7 @@ fn hash3(i: i32, j: i32, k: i32) -> u32 {
 /// Dot product of the offset `(x, y, z)` with one of Perlin's 12 edge gradients (16 entries,
 /// four repeated), chosen by the hash.
 #[inline]
-pub(super) fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
+pub(crate) fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
     let h = h & 15;
     let u = if h < 8 { x } else { y };
     let v = if h < 4 {
@@ -48,23 +48,23 @@ pub(super) fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
 
 /// Quintic fade `6t⁵ − 15t⁴ + 10t³` (C² continuous lattice blending).
 #[inline]
-pub(super) fn fade(t: f32) -> f32 {
+pub(crate) fn fade(t: f32) -> f32 {
     t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 }
 
 #[inline]
-pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
+pub(crate) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + t * (b - a)
 }
 
 /// Improved Perlin gradient noise at `p`: zero on the integer lattice, about `[−1, 1]`.
 ///
 /// On x86-64 the eight corners are hashed and dotted several at a time (AVX2 where the CPU has
-/// it, else SSE2, [`super::noise_simd`]), the same operations in the same order as the portable
+/// it, else SSE2, [`crate::render::medium::noise_simd`]), the same operations in the same order as the portable
 /// [`gradient_noise_scalar`], so the bits are the same on every machine.
 #[inline]
 pub fn gradient_noise(p: Vec3A) -> f32 {
-    super::noise_simd::gradient_noise(p)
+    crate::render::medium::noise_simd::gradient_noise(p)
 }
 
 /// [`gradient_noise`] one corner at a time (the reference the SIMD version must equal).
@@ -304,7 +304,10 @@ impl Billows {
         for o in 0..n.min(self.n) {
             if depths[o] > 0.0 {
                 let mut acc = 0.0;
-                super::counters::add(super::counters::Counter::NoiseOctaves, points.len() as u64);
+                crate::render::counters::add(
+                    crate::render::counters::Counter::NoiseOctaves,
+                    points.len() as u64,
+                );
                 for (q, &w) in points.iter().zip(weights) {
                     acc += w * (billow(*q + self.drift[o]) - CREASE);
                 }

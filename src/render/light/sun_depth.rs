@@ -32,9 +32,9 @@
 use glam::{Mat3A, Vec3A};
 use rayon::prelude::*;
 
-use super::camera::Ray;
-use super::lattice::{Columns, GridShape, sample_bundle, trilinear};
-use super::medium::Medium;
+use crate::render::camera::Ray;
+use crate::render::medium::Medium;
+use crate::render::medium::lattice::{Columns, GridShape, sample_bundle, trilinear};
 
 /// Columns per bundle (one cull each) along the grid's second axis.
 const BUNDLE_COLUMNS: usize = 8;
@@ -229,7 +229,7 @@ impl SunGrid {
 /// every other node, then a node between only where its two neighbours differ. Either way a
 /// node between two equal ones — the empty shells inside the blob supports, the uniform core —
 /// takes their value; what this can miss is narrower than two nodes, as fine as the billows the
-/// light grid keeps ([`super::blobs::BlobMedium::for_lattice`]). Samples move forward along the
+/// light grid keeps ([`crate::render::medium::blobs::BlobMedium::for_lattice`]). Samples move forward along the
 /// ray in each pass (the medium's window of blobs restarts once per pass).
 fn column<M: Medium>(
     medium: &M,

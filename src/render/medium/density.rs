@@ -1,7 +1,7 @@
 //! The cloud's density model: the extinction a ray sample sees from the blobs it crosses.
 //!
 //! The blob field gives the large shape; its surface is displaced along its normal by
-//! cumulus billows ([`super::noise::Billows`]), pushed out on their tops and cut in at their
+//! cumulus billows ([`crate::render::medium::noise::Billows`]), pushed out on their tops and cut in at their
 //! creases — pyroclastic displacement after Wrenninge (*Production Volume Rendering*), with
 //! octaves that follow the local feature size as Bouthors & Neyret's puff hierarchies do.
 //!
@@ -14,9 +14,9 @@
 //! F(x)   = Σ_i w_i F_i / Σ_i w_i               local feature size, F_i = blob i's median semi-axis
 //! ```
 //!
-//! `D_F` is the billow displacement for feature size `F` ([`super::noise::Billows`]): octaves
+//! `D_F` is the billow displacement for feature size `F` ([`crate::render::medium::noise::Billows`]): octaves
 //! from a fifth of the target down to the frame's finest, each about `amplitude × wavelength`
-//! deep (finer ones a little deeper: [`super::noise::HURST`]) and present only where `F`
+//! deep (finer ones a little deeper: [`crate::render::medium::noise::HURST`]) and present only where `F`
 //! exceeds its wavelength, so a young blob, a leg and the body each get
 //! billows of their own size, and a thin part is never cut deeper than a fraction of its
 //! radius (it keeps its width).
@@ -40,51 +40,51 @@
 
 use glam::Vec3A;
 
-use super::noise::{Billows, CREASE, MAX_OCTAVES};
+use crate::render::medium::noise::{Billows, CREASE, MAX_OCTAVES};
 
 /// Most blobs whose weights enter the noise blend at one sample; the strongest are kept (the
 /// field still sums all).
-pub(super) const MAX_ACTIVE: usize = 24;
+pub(crate) const MAX_ACTIVE: usize = 24;
 
 /// One blob crossed by the current ray: its span and its frames as affine functions of `t`.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Hit {
+pub(crate) struct Hit {
     /// The blob's index in the frame's blob list (its identity, for the ID mattes).
-    pub(super) blob: u32,
-    pub(super) t0: f32,
-    pub(super) t1: f32,
-    pub(super) b2: f32,
+    pub(crate) blob: u32,
+    pub(crate) t0: f32,
+    pub(crate) t1: f32,
+    pub(crate) b2: f32,
     /// Feature size `F_i` (world units): the blob's median semi-axis.
-    pub(super) feature: f32,
+    pub(crate) feature: f32,
     /// Half the smallest semi-axis of the support: `½(1 − |q|²)·r` under-estimates the world
     /// distance from unit-support point `q` to the support's boundary.
-    pub(super) half_min_support: f32,
+    pub(crate) half_min_support: f32,
     /// Transpose of the world → unit-support map: the field's world gradient is
     /// `−4B²(1 − |q|²)·Aᵀq` at unit-support point `q`.
-    pub(super) a_t: glam::Mat3A,
+    pub(crate) a_t: glam::Mat3A,
     /// Unit-support coordinates `o + t·d` (support is `|·| < 1`).
-    pub(super) o: Vec3A,
-    pub(super) d: Vec3A,
+    pub(crate) o: Vec3A,
+    pub(crate) d: Vec3A,
     /// Noise coordinates `no + t·nd`.
-    pub(super) no: Vec3A,
-    pub(super) nd: Vec3A,
+    pub(crate) no: Vec3A,
+    pub(crate) nd: Vec3A,
 }
 
 /// Deepest a crease may cut, as a fraction of the local feature size `F` (softly: a crease of
 /// depth `c` cuts `c·m/(c + m)`, `m = MAX_CUT·F`), so legs, necks and the knot's tube keep
 /// their width while the body's billows cut in freely.
-pub(super) const MAX_CUT: f32 = 0.35;
+pub(crate) const MAX_CUT: f32 = 0.35;
 
 /// Density parameters, already in world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct DensityParams {
+pub(crate) struct DensityParams {
     /// Extinction inside the cloud, per world unit.
-    pub(super) sigma: f32,
+    pub(crate) sigma: f32,
     /// Soft edge width `W` (world units).
-    pub(super) edge: f32,
+    pub(crate) edge: f32,
     /// The billows displacing the surface.
-    pub(super) billows: Billows,
-    pub(super) inv_threshold: f32,
+    pub(crate) billows: Billows,
+    pub(crate) inv_threshold: f32,
 }
 
 impl DensityParams {
@@ -136,7 +136,7 @@ impl DensityParams {
 /// What decides a sample's density once its displacement is known to lie in a range: the
 /// depth, the ramp and the lift's limits ([`DensityParams::extinction`]).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Settle {
+pub(crate) struct Settle {
     d: f32,
     edge: f32,
     sigma: f32,
@@ -163,7 +163,7 @@ impl Settle {
     /// The density once the displacement lies in `[lo, hi]`, if the octaves left cannot move
     /// the ramp off a clamp (then the answer is exact); `None` otherwise.
     #[inline]
-    pub(super) fn check(&self, lo: f32, hi: f32) -> Option<f32> {
+    pub(crate) fn check(&self, lo: f32, hi: f32) -> Option<f32> {
         // A lift is ≥ 0 for a push > 0 and ≤ 0 for a push ≤ 0, so the signs alone often
         // decide (the same answers as the lifts, without their divisions).
         let empty = !(self.d > 0.0 && hi > 0.0) && self.d + self.lift(hi) <= 0.0;
@@ -205,7 +205,7 @@ fn ramp(v: f32, w: f32) -> f32 {
 /// spanning `t`); `inside` is true within the iso-surface (`g > 1`), where erosion may still
 /// give 0.
 #[inline]
-pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) -> (f32, bool) {
+pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) -> (f32, bool) {
     let mut g = 0.0;
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
@@ -286,7 +286,7 @@ pub(super) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
             let w = f - 0.5 * fmax;
             if w > 0.0 {
                 let h = &hits[k as usize];
-                super::counters::add(super::counters::Counter::NoiseEvals, 1);
+                crate::render::counters::add(crate::render::counters::Counter::NoiseEvals, 1);
                 points[m] = h.no + h.nd * t;
                 weights[m] = w;
                 w2 += w * w;
@@ -321,7 +321,8 @@ mod tests {
         };
         let f = 1.0; // every octave at full depth
         let total = p.billows.total_depth(f);
-        let octave = |k: i32| 0.25 * 0.2 * 2.03f32.powf(-(k as f32) * super::super::noise::HURST);
+        let octave =
+            |k: i32| 0.25 * 0.2 * 2.03f32.powf(-(k as f32) * crate::render::medium::noise::HURST);
         assert!((total - (0..4).map(octave).sum::<f32>()).abs() < 1e-5);
         let never = |_: &[f32; 8], _: usize, _: &Settle| -> Result<f32, f32> { unreachable!() };
         // Beyond the highest billow top: nothing, and the march may skip.

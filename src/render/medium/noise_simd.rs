@@ -1,9 +1,9 @@
-//! The SIMD versions of [`super::noise::gradient_noise`], the one place with `unsafe` for the
+//! The SIMD versions of [`crate::render::medium::noise::gradient_noise`], the one place with `unsafe` for the
 //! noise: SSE2 (every x86-64 has it) and AVX2, chosen at run time, so a baseline build uses the
 //! wider path on a machine that has it and a farm's older machines still run.
 //!
 //! Both do the same operations in the same order per corner as the portable
-//! [`super::noise::gradient_noise_scalar`] — wrapping integer products, bit selects, sign flips
+//! [`crate::render::medium::noise::gradient_noise_scalar`] — wrapping integer products, bit selects, sign flips
 //! by XOR, IEEE `+ − ×` on f32 and no FMA — so the bits are the same on every machine and path
 //! (the tests below compare them with the scalar noise bit for bit).
 
@@ -11,7 +11,7 @@ use glam::Vec3A;
 
 /// Gradient noise at `p` on the widest path this machine has (x86-64: AVX2, else SSE2).
 #[inline]
-pub(super) fn gradient_noise(p: Vec3A) -> f32 {
+pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
     #[cfg(target_arch = "x86_64")]
     {
         // The detection is cached after the first call: one load and a branch.
@@ -24,7 +24,7 @@ pub(super) fn gradient_noise(p: Vec3A) -> f32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        super::noise::gradient_noise_scalar(p)
+        crate::render::medium::noise::gradient_noise_scalar(p)
     }
 }
 
@@ -38,7 +38,7 @@ mod sse2 {
 
     use glam::Vec3A;
 
-    use super::super::noise::{HASH_AXES, fade, lerp};
+    use crate::render::medium::noise::{HASH_AXES, fade, lerp};
 
     /// Low 32 bits of the lane-wise product `a·b` (SSE4.1's `pmulld` from SSE2).
     #[inline(always)]
@@ -53,7 +53,7 @@ mod sse2 {
         }
     }
 
-    /// [`super::super::noise::mix`] lane-wise.
+    /// [`crate::render::medium::noise::mix`] lane-wise.
     #[inline(always)]
     unsafe fn mix(h: __m128i) -> __m128i {
         unsafe {
@@ -71,7 +71,7 @@ mod sse2 {
         unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
     }
 
-    /// [`super::super::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
+    /// [`crate::render::medium::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
     #[inline(always)]
     unsafe fn grad(h: __m128i, x: __m128, y: __m128, z: __m128) -> __m128 {
         unsafe {
@@ -94,7 +94,7 @@ mod sse2 {
     }
 
     #[inline]
-    pub(super) fn gradient_noise(p: Vec3A) -> f32 {
+    pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
         let f = p.floor();
         let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
         let r = p - f;
@@ -138,9 +138,9 @@ mod avx2 {
 
     use glam::Vec3A;
 
-    use super::super::noise::{HASH_AXES, fade, lerp};
+    use crate::render::medium::noise::{HASH_AXES, fade, lerp};
 
-    /// [`super::super::noise::mix`] lane-wise.
+    /// [`crate::render::medium::noise::mix`] lane-wise.
     #[inline]
     #[target_feature(enable = "avx2")]
     fn mix(h: __m256i) -> __m256i {
@@ -158,7 +158,7 @@ mod avx2 {
         _mm256_or_ps(_mm256_and_ps(mask, a), _mm256_andnot_ps(mask, b))
     }
 
-    /// [`super::super::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
+    /// [`crate::render::medium::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
     #[inline]
     #[target_feature(enable = "avx2")]
     fn grad(h: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
@@ -181,7 +181,7 @@ mod avx2 {
 
     /// Callers must know the CPU has AVX2 (calling it is `unsafe` elsewhere).
     #[target_feature(enable = "avx2")]
-    pub(super) fn gradient_noise(p: Vec3A) -> f32 {
+    pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
         // glam's floor (the scalar path's), then the lattice point's integers by a truncating
         // conversion: exact for the integral `f` below 2³¹ in magnitude, which is all the
         // saturating `as i32` of the scalar path could differ on (those points go there).
@@ -192,7 +192,7 @@ mod avx2 {
             _mm_set1_ps(2_147_483_648.0),
         ));
         if inside & 0b111 != 0b111 {
-            return super::super::noise::gradient_noise_scalar(p);
+            return crate::render::medium::noise::gradient_noise_scalar(p);
         }
         let [a, b, c] = HASH_AXES;
         let axes = _mm_setr_epi32(a as i32, b as i32, c as i32, 0);
@@ -229,8 +229,8 @@ mod avx2 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::noise::gradient_noise_scalar;
     use super::*;
+    use crate::render::medium::noise::gradient_noise_scalar;
 
     /// Points of every sign and size, lattice points and their neighbours (the hash's wrapping
     /// products, the floor at negative integers), and points past the 32-bit lattice (the
@@ -306,7 +306,9 @@ mod timing {
                 t.elapsed().as_secs_f64() * 1e9 / 5e6
             );
         };
-        time("scalar", &|p| super::super::noise::gradient_noise_scalar(p));
+        time("scalar", &|p| {
+            crate::render::medium::noise::gradient_noise_scalar(p)
+        });
         time("sse2", &|p| sse2::gradient_noise(p));
         time("dispatched", &|p| gradient_noise(p));
     }

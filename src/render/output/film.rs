@@ -1,6 +1,6 @@
 //! What a frame is rendered into besides its size: the window of pixels to render (a region of
 //! the full image, for look tests) and the outputs beside the beauty — the render passes and
-//! the ID mattes ([`super::cryptomatte`]). pbrt's `Film` holds the same: resolution, crop
+//! the ID mattes ([`crate::render::output::cryptomatte`]). pbrt's `Film` holds the same: resolution, crop
 //! window and the outputs a pixel writes.
 //!
 //! A region renders exactly the pixels a full frame has there, bit for bit: the integrator
@@ -8,7 +8,7 @@
 //! frustum, as in the full frame) and only their pixels inside it; every pixel keeps its own
 //! generator, seeded by its index in the full frame.
 
-use super::cryptomatte::Mattes;
+use crate::render::output::cryptomatte::Mattes;
 
 /// A window of a frame's pixels: columns `x0..x1` and rows `y0..y1` (half-open, `x1`, `y1`
 /// exclusive), row 0 at the top, inside the full image.
@@ -109,9 +109,9 @@ impl std::fmt::Display for Region {
 pub struct Film {
     /// Render only these pixels (`None`: the whole frame).
     pub region: Option<Region>,
-    /// Also make the render passes ([`super::Passes`]).
+    /// Also make the render passes ([`crate::render::Passes`]).
     pub passes: bool,
-    /// Also make these ID mattes ([`super::cryptomatte::IdMattes`]).
+    /// Also make these ID mattes ([`crate::render::output::cryptomatte::IdMattes`]).
     pub mattes: Option<Mattes>,
 }
 

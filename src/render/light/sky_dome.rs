@@ -2,14 +2,14 @@
 //! sun's colour after the clear atmosphere.
 //!
 //! In: [`Sky`] and [`Sun`] settings. Out: [`SkyDome`] (radiance per direction, hemisphere
-//! means, the sun's tint), which the sky cells ([`super::sky_light`]), the shader's
-//! multiple-scattering octaves ([`super::shading`]) and the background of the output use.
+//! means, the sun's tint), which the sky cells ([`crate::render::light::sky_cells`]), the shader's
+//! multiple-scattering octaves ([`crate::render::light::shading`]) and the background of the output use.
 
 use std::f32::consts::PI;
 
 use glam::Vec3;
 
-use super::settings::{Sky, Sun};
+use crate::render::settings::{Sky, Sun};
 
 /// Fraction of the horizon colour seen below the horizon (a dim ground; gradient sky).
 const GROUND: f32 = 0.35;

@@ -1,19 +1,25 @@
 //! What the integrator marches through: the [`Medium`] contract (extinction along rays, as
-//! pbrt's `Medium`; the phase function is the cloud material's, [`super::phase`]), and
+//! pbrt's `Medium`; the phase function is the cloud material's, [`crate::render::light::phase`]), and
 //! [`Homogeneous`], an analytic constant-density ball or slab used to check the integrator
 //! against closed forms.
 //!
 //! A medium knows its density only: the light reaching a sample comes from a separate
-//! [`super::lights::Lights`] (the light grid, built from any medium by
-//! [`super::light_grid::LightGrid::build`]), so one medium can be lit by another's grid.
+//! [`crate::render::light::ShadowDepths`] (the light grid, built from any medium by
+//! [`crate::render::light::grid::LightGrid::build`]), so one medium can be lit by another's grid.
 //!
-//! The blob cloud ([`super::blobs::BlobMedium`]) is the production medium. `Medium` is a trait
+//! The blob cloud ([`crate::render::medium::blobs::BlobMedium`]) is the production medium. `Medium` is a trait
 //! (not an enum) only so that the integrator is monomorphised per medium with no dispatch in the
 //! per-sample loop; outside code is not expected to add media.
 
+pub mod blobs;
+pub mod density;
+pub mod lattice;
+pub mod noise;
+mod noise_simd;
+
 use glam::{Mat3A, Vec3A};
 
-use super::camera::{Frustum, Ray, ray_ellipsoid};
+use crate::render::camera::{Frustum, Ray, ray_ellipsoid};
 
 /// A participating medium as the integrator sees it.
 ///
@@ -34,7 +40,7 @@ pub trait Medium: Sync {
     fn begin_ray(&self, ray: &Ray, scratch: &mut Self::Scratch);
 
     /// Show the following rays the medium `dt` seconds after the time it stands for (motion
-    /// blur inside one time sample; [`super::motion_blur`]). Default: the medium does not move.
+    /// blur inside one time sample; [`crate::render::integrator::motion_blur`]). Default: the medium does not move.
     #[inline]
     fn set_time_offset(&self, _scratch: &mut Self::Scratch, _dt: f32) {}
 
@@ -58,8 +64,8 @@ pub trait Medium: Sync {
     }
 
     /// Which piece of the medium dominates the extinction at `t`, the last `t` sampled (for the
-    /// ID mattes, [`super::cryptomatte`]): for the blob cloud the index, in the frame's blob
-    /// list, of the blob whose field term is largest there; [`super::cryptomatte::NO_MATTE`]
+    /// ID mattes, [`crate::render::output::cryptomatte`]): for the blob cloud the index, in the frame's blob
+    /// list, of the blob whose field term is largest there; [`crate::render::output::cryptomatte::NO_MATTE`]
     /// where none. Default: one piece, 0.
     #[inline]
     fn label(&self, _scratch: &mut Self::Scratch, _t: f32) -> u32 {
@@ -147,7 +153,7 @@ impl Shape {
 }
 
 /// Constant extinction inside a [`Shape`]. For tests and calibration (exact light depths through
-/// it: [`super::lights::HomogeneousLights`]).
+/// it: [`crate::render::light::HomogeneousLights`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Homogeneous {
     /// Where the medium is.

@@ -7,7 +7,8 @@
 //! HG(g/(1 + g))` with `f = g²`. The smooth remainder is sampled on the cells; the delta part
 //! is sky light from straight behind the sample scattered straight on, which along a whole ray
 //! sums to `L_sky(v)·τ·T` (`τ` the ray's optical depth through the cloud, `T = e^{−τ}`): the
-//! integrator adds it once per ray ([`SkyLight::forward`]).
+//! integrator adds it once per ray ([`SkyLight::forward_radiance`], through
+//! [`crate::render::light::shading::Shading::forward_sky`]).
 //!
 //! In: the [`SkyDome`] and the phase asymmetry. Out: per-frame cell directions and radiances;
 //! per ray, the RGB weight of each cell ([`SkyLight::ray_weights`]).
@@ -16,8 +17,8 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A};
 
-use super::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
-use super::sky::SkyDome;
+use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
+use crate::render::light::sky_dome::SkyDome;
 
 /// Number of sky cells: the 26 directions from a cube's centre to its face centres, edge
 /// midpoints and corners (all of them at least 35° apart).
@@ -81,7 +82,7 @@ pub struct SkyLight {
 
 impl SkyLight {
     /// Cells of `dome` for a cloud with phase asymmetry `g` (the two-lobe
-    /// [`super::phase::cloud_phase`]).
+    /// [`crate::render::light::phase::cloud_phase`]).
     pub fn new(dome: &SkyDome, g: f32) -> SkyLight {
         let dirs = directions();
         // Bin a uniform sampling of the sphere (uniform in y and azimuth) into the nearest cell.
@@ -242,7 +243,7 @@ fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::phase::cloud_phase;
+    use crate::render::light::phase::cloud_phase;
     use crate::render::settings::{Sky, Sun};
 
     #[test]
