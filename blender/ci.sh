@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
-VENV=$ROOT/target/bpy-venv
+VENV=${BPY_VENV:-$ROOT/target/bpy-venv}   # BPY_VENV: an existing venv with bpy, pytest, numpy
 BPY_VERSION=${BPY_VERSION:-5.0.1}   # the newest bpy on the package index for CPython 3.11
 export CARGO_TARGET_DIR=$ROOT/target
 start=$(date +%s)
@@ -25,12 +25,17 @@ if ! "$VENV/bin/python" -c "import bpy, pytest, numpy" 2>/dev/null; then
   fi
 fi
 
-echo "== building the nephele CLI (release)"
-cargo build --release --quiet
+if [ -n "${NEPHELE_BIN:-}" ]; then
+  echo "== the nephele CLI: $NEPHELE_BIN (NEPHELE_BIN given, not built)"
+else
+  echo "== building the nephele CLI (release)"
+  cargo build --release --quiet
+  NEPHELE_BIN=$ROOT/target/release/nephele
+fi
 echo "== pytest blender/tests (bpy $("$VENV/bin/python" -c 'import bpy; print(bpy.app.version_string)' 2>/dev/null | tail -1))"
 log=$ROOT/target/blender-tests.log
 set +e
-NEPHELE_BIN=$ROOT/target/release/nephele "$VENV/bin/python" -m pytest -q -s -p no:cacheprovider \
+NEPHELE_BIN=$NEPHELE_BIN "$VENV/bin/python" -m pytest -q -s -p no:cacheprovider \
   -W ignore::DeprecationWarning blender/tests >"$log" 2>&1
 status=$?
 set -e

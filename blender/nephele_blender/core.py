@@ -54,6 +54,9 @@ class ShotSettings:
     fit_candidates: Optional[int] = None
     camera: str = "Auto((azimuth_deg: 30.0, elevation_deg: 15.0, distance: 1.0, fov_deg: 35.0))"
     extra_formats: List[str] = field(default_factory=lambda: ["Exr"])
+    #: the animation's still target at the end (nephele's default 0.5 s when None); a shot
+    #: shorter than this is all hold: every frame the same and `vel` zero.
+    hold_seconds: Optional[float] = None
 
 
 # --- mesh export (no operator: works in background mode and any context) -------------------
@@ -104,7 +107,10 @@ def scene_text(mesh_file: str, out_dir: Path, name: str, s: ShotSettings, diagon
     if s.fit_candidates:
         fit += f", candidates: {s.fit_candidates}"
     fit += ")"
-    animation = {"Diffusion": "Diffusion(())", "Aggregation": "Aggregation(())"}[s.animation]
+    if s.animation not in ("Diffusion", "Aggregation"):
+        raise ValueError(f"animation {s.animation!r}: Diffusion or Aggregation")
+    options = f"hold_seconds: {float(s.hold_seconds)!r}" if s.hold_seconds is not None else ""
+    animation = f"{s.animation}(({options}))"
     formats = ", ".join(["Vdb", *[f for f in s.extra_formats if f != "Vdb"]])
     out = str(out_dir).replace("\\", "/").replace('"', '\\"')
     return f"""// Written by the nephele Blender add-on. Y-up: Blender's Z is nephele's Y.
@@ -248,8 +254,16 @@ def import_camera(exr_paths: Dict[int, Path], name: str = "nephele camera"):
 
 # --- the Volume ----------------------------------------------------------------------------
 
-def cloud_material(name: str = "nephele cloud", albedo: float = 0.95, anisotropy: float = 0.75):
-    """Principled Volume reading the grid `density` as extinction per world unit (density 1)."""
+def cloud_material(name: str = "nephele cloud", albedo: float = 0.95, anisotropy: float = 0.75,
+                   density_scale: float = 1.0):
+    """Principled Volume whose Density is the grid `density` (extinction per world unit) times
+    `density_scale`, through an Attribute node linked into Density.
+
+    Not the Principled Volume's own "Density Attribute" field: Cycles in Blender 5.0 (bpy 5.0.1)
+    reads that field for the shading but not for the volume's extinction bound (majorant), so a
+    grid volume then renders almost transparent (Blender's own dense mesh-to-volume cube peaks
+    at alpha 0.24, speckled, or 0 depending on the view). Linked from an Attribute node, the
+    same grid renders opaque (alpha 1.0); EEVEE and older Cycles read it the same way."""
     import bpy
 
     mat = bpy.data.materials.new(name)
@@ -263,11 +277,20 @@ def cloud_material(name: str = "nephele cloud", albedo: float = 0.95, anisotropy
         nodes.remove(n)
     out = nodes.new("ShaderNodeOutputMaterial")
     vol = nodes.new("ShaderNodeVolumePrincipled")
-    vol.inputs["Density"].default_value = 1.0
-    vol.inputs["Density Attribute"].default_value = "density"
+    vol.inputs["Density Attribute"].default_value = ""
+    attr = nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = "GEOMETRY"
+    attr.attribute_name = "density"
+    scale = nodes.new("ShaderNodeMath")
+    scale.operation = "MULTIPLY"
+    scale.label = "density scale"
+    scale.inputs[1].default_value = density_scale
+    links = mat.node_tree.links
+    links.new(attr.outputs["Fac"], scale.inputs[0])
+    links.new(scale.outputs["Value"], vol.inputs["Density"])
     vol.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
     vol.inputs["Anisotropy"].default_value = anisotropy
-    mat.node_tree.links.new(vol.outputs["Volume"], out.inputs["Volume"])
+    links.new(vol.outputs["Volume"], out.inputs["Volume"])
     return mat
 
 

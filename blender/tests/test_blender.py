@@ -91,7 +91,8 @@ def shot(tmp_path_factory):
     settings = core.ShotSettings(
         blobs=40, fit_samples=5000, fit_candidates=500, animation="Aggregation",
         seconds=3 / 24, fps=24.0, start_frame=1, width=W, height=H, shutter=0.5,
-        quality="Preview", voxels_per_diagonal=64, seed=2, extra_formats=["Exr"])
+        quality="Preview", voxels_per_diagonal=64, seed=2, extra_formats=["Exr"],
+        hold_seconds=0.0)  # no still end (0.5 s by default, longer than the shot): frames move
     out = tmp_path_factory.mktemp("shot")
     volume, camera, scene_path = core.make_cloud(obj, out, settings, binary=nephele_bin(),
                                                  use_module=False)
