@@ -28,6 +28,7 @@ mod mesh_io;
 mod mitsuba;
 mod motion_blur;
 mod polygonize;
+mod readme_defaults;
 mod render;
 mod robustness;
 mod scene;
