@@ -602,7 +602,7 @@ impl Shot {
 
     /// The file names of `frame` (one per format, plus the blob dump if asked), in `dir`.
     fn frame_paths(&self, frame: u32) -> Vec<PathBuf> {
-        scene::files::frame_paths(&self.read(), frame)
+        scene::frame_files::frame_paths(&self.read(), frame)
     }
 
     /// Render `frame` in memory: (H, W, 4) float32 linear RGBA, premultiplied, in the scene's

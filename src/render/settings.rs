@@ -167,9 +167,9 @@ pub struct CloudMaterial {
     /// depend on the model's units).
     pub density: f32,
     /// Width of the soft edge (a linear density ramp) as a fraction of the bounding-box
-    /// diagonal (0 = hard edge). The default, 0.02, is five voxels of the default volume
-    /// export, so an exported grid holds the edge: at 0.01 its reconstruction widened a
-    /// backlit rim enough to put Mitsuba's render of it 13 % from nephele's frame (README).
+    /// diagonal (0 = hard edge). The default, 0.008, is a thin fringe under the billows: four
+    /// voxels of the default volume export (`D / 512`), so an exported grid still holds the
+    /// ramp (on the smooth density it was 0.02; the billows now carry the cloud's outline).
     pub edge: f32,
     /// Single-scattering albedo.
     pub albedo: f32,

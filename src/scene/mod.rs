@@ -14,7 +14,7 @@ pub mod camera;
 pub mod canonical;
 pub mod chunk;
 pub mod file;
-pub mod files;
+pub mod frame_files;
 pub mod frames;
 pub mod lock;
 pub mod provenance;

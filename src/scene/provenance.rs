@@ -289,7 +289,7 @@ pub fn frame_inputs(
                 .put(&frame);
         }),
     );
-    let meta = super::files::header_strings(shot, frame, 0);
+    let meta = super::frame_files::header_strings(shot, frame, 0);
     hashes.insert(
         Component::Header,
         hash(&|e| {
@@ -480,7 +480,7 @@ impl FrameCheck {
 
 /// The files frame number `frame` of `shot` needs, with their hashes from `inputs`.
 pub fn wanted_files(shot: &Shot, frame: u32, inputs: &FrameInputs) -> Vec<WantedFile> {
-    let stem = super::files::frame_stem(shot, frame);
+    let stem = super::frame_files::frame_stem(shot, frame);
     let mut kinds: Vec<FileKind> = shot
         .scene()
         .file
@@ -678,7 +678,7 @@ pub fn exr_hash(path: &Path) -> Option<String> {
 pub fn manifest_path(shot: &Shot, frame: u32) -> PathBuf {
     shot.dir().join(format!(
         "{}.manifest.json",
-        super::files::frame_stem(shot, frame)
+        super::frame_files::frame_stem(shot, frame)
     ))
 }
 

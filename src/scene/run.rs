@@ -10,7 +10,7 @@ use super::provenance::{self, FrameStatus};
 use super::shot::Shot;
 use super::stats::StatsBasis;
 use super::target::TargetOrigin;
-use super::{RenderOptions, Scene, SceneError, files};
+use super::{RenderOptions, Scene, SceneError, frame_files};
 use crate::progress::Timings;
 
 /// What happened to one frame.
@@ -75,7 +75,7 @@ impl Shot {
         // there is one) even when every frame turns out to be up to date.
         let prep = timings.stage("target and plan", || self.prepared())?;
         report.target = Some(prep.origin.clone());
-        let voxel = files::grid_voxel(self)?;
+        let voxel = frame_files::grid_voxel(self)?;
         let basis = if opts.stats {
             Some(StatsBasis::new(self)?)
         } else {
@@ -112,7 +112,7 @@ impl Shot {
                 // Held from the check until the manifest is written (by the writer thread).
                 let lock = FrameLock::acquire(
                     self.dir(),
-                    &files::frame_stem(self, frame),
+                    &frame_files::frame_stem(self, frame),
                     &self.scene().path,
                 )?;
                 let check = provenance::check_frame(self, frame, &inputs, opts.force);
@@ -147,7 +147,7 @@ impl Shot {
                         // Written beside the next frame's render: sequentially, or its formats
                         // would only take the render's cores.
                         writing = Some(scope.spawn(move || {
-                            let out = files::FrameOutput {
+                            let out = frame_files::FrameOutput {
                                 image: image.as_ref(),
                                 settings: &settings,
                                 blobs: &blobs,
@@ -155,14 +155,14 @@ impl Shot {
                                 inputs: &inputs,
                                 check: &check,
                             };
-                            let written = files::write_frame(self, frame, &out, false);
+                            let written = frame_files::write_frame(self, frame, &out, false);
                             drop(lock);
                             written
                         }));
                     } else {
                         // The last frame: nothing to overlap with, so no copy of it, and its
                         // formats in parallel.
-                        let out = files::FrameOutput {
+                        let out = frame_files::FrameOutput {
                             image,
                             settings: &settings,
                             blobs: &blobs,
@@ -170,7 +170,7 @@ impl Shot {
                             inputs: &inputs,
                             check: &check,
                         };
-                        files::write_frame(self, frame, &out, true)?;
+                        frame_files::write_frame(self, frame, &out, true)?;
                         drop(lock);
                     }
                 } else {
@@ -226,7 +226,7 @@ impl Shot {
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
     /// with the reason (the run's rule, for `prepare` and the farm).
     pub fn statuses(&self) -> Result<Vec<(u32, FrameStatus)>, SceneError> {
-        let voxel = files::grid_voxel(self)?;
+        let voxel = frame_files::grid_voxel(self)?;
         let film = self.film()?.clone();
         self.frames()
             .iter()

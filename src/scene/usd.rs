@@ -84,8 +84,10 @@ pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
 
 /// The VDB file of frame number `frame`, as `nephele render --formats vdb` names it.
 pub fn frame_vdb(shot: &Shot, frame: u32) -> PathBuf {
-    shot.dir()
-        .join(format!("{}.vdb", super::files::frame_stem(shot, frame)))
+    shot.dir().join(format!(
+        "{}.vdb",
+        super::frame_files::frame_stem(shot, frame)
+    ))
 }
 
 /// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.
