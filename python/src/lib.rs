@@ -15,6 +15,7 @@ use nephele::render::Frame;
 use nephele::render::output::color::ColorSpace;
 use nephele::scene::frames::FrameSelection;
 use nephele::scene::{self, RenderOptions, SceneError as CoreSceneError, SceneFile};
+use pyo3::BoundObject;
 use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyByteArray, PyDict, PyList};
@@ -77,58 +78,34 @@ fn raise<T: pyo3::PyTypeInfo>(py: Python<'_>, msg: String, attrs: &[(&str, Py<Py
     err
 }
 
+/// `v` as a Python object (`None` should it not convert: the strings and integers given here
+/// always do).
+fn to_py<'py, T: IntoPyObject<'py>>(py: Python<'py>, v: T) -> Py<PyAny> {
+    v.into_pyobject(py)
+        .map_or_else(|_| py.None(), |o| o.into_any().unbind())
+}
+
 fn scene_err(e: CoreSceneError) -> PyErr {
     Python::attach(|py| {
         let msg = message(&e);
         let none = || py.None();
-        let (path, line, column, field): (Py<PyAny>, Py<PyAny>, Py<PyAny>, Py<PyAny>) = match &e {
+        let path = |p: &std::path::Path| to_py(py, p.to_string_lossy());
+        let (path, line, column, field) = match &e {
             CoreSceneError::Parse {
-                path, line, column, ..
-            } => (
-                path.to_string_lossy()
-                    .into_pyobject(py)
-                    .unwrap()
-                    .into_any()
-                    .unbind(),
-                line.into_pyobject(py).unwrap().into_any().unbind(),
-                column.into_pyobject(py).unwrap().into_any().unbind(),
-                none(),
-            ),
-            CoreSceneError::Invalid { path, field, .. } => (
-                path.to_string_lossy()
-                    .into_pyobject(py)
-                    .unwrap()
-                    .into_any()
-                    .unbind(),
-                none(),
-                none(),
-                field.into_pyobject(py).unwrap().into_any().unbind(),
-            ),
-            CoreSceneError::Io { path, .. } => (
-                path.to_string_lossy()
-                    .into_pyobject(py)
-                    .unwrap()
-                    .into_any()
-                    .unbind(),
-                none(),
-                none(),
-                none(),
-            ),
+                path: p,
+                line,
+                column,
+                ..
+            } => (path(p), to_py(py, line), to_py(py, column), none()),
+            CoreSceneError::Invalid { path: p, field, .. } => {
+                (path(p), none(), none(), to_py(py, field))
+            }
+            CoreSceneError::Io { path: p, .. } => (path(p), none(), none(), none()),
             CoreSceneError::MissingTarget { scene, .. }
             | CoreSceneError::Mesh { scene, .. }
             | CoreSceneError::Fit { scene, .. }
             | CoreSceneError::Model { scene, .. }
-            | CoreSceneError::Animate { scene, .. } => (
-                scene
-                    .to_string_lossy()
-                    .into_pyobject(py)
-                    .unwrap()
-                    .into_any()
-                    .unbind(),
-                none(),
-                none(),
-                none(),
-            ),
+            | CoreSceneError::Animate { scene, .. } => (path(scene), none(), none(), none()),
             _ => (none(), none(), none(), none()),
         };
         raise::<SceneError>(

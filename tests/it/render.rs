@@ -608,18 +608,7 @@ fn look() {
     s.sun.direction = Vec3::new(0.75, -0.6, 0.05);
     let f = render_frame(&s, &blobs);
     output::write_png(&dir.join("front.png"), &f, &s).unwrap();
-    let mut lum: Vec<f32> = (0..f.alpha.len())
-        .filter(|&i| f.alpha[i] > 0.99)
-        .map(|i| 0.2126 * f.rgb[i][0] + 0.7152 * f.rgb[i][1] + 0.0722 * f.rgb[i][2])
-        .collect();
-    lum.sort_by(f32::total_cmp);
-    let q = |p: f32| lum[((lum.len() - 1) as f32 * p) as usize];
-    println!(
-        "opaque luminance p5 {:.3} p50 {:.3} p95 {:.3}",
-        q(0.05),
-        q(0.5),
-        q(0.95)
-    );
+    println!("{}", lum_stats(&f));
     // Looking toward the sun: silver lining.
     let mut back = s.clone();
     back.camera.position = Vec3::new(-2.2, 1.4, -3.4);
