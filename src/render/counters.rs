@@ -3,7 +3,7 @@
 //! guessed.
 //!
 //! Compiled in only with the `counters` feature (`cargo test --release --features counters
-//! --test it -- --ignored --nocapture render::bench`); without it [`add`] is empty and inlines to
+//! --lib -- --ignored --nocapture render::bench`); without it [`add`] is empty and inlines to
 //! nothing. The counts are global relaxed atomics: exact totals at any thread count, at a cost
 //! that matters only in the counting build (whose times are not the benchmark's).
 

@@ -39,9 +39,13 @@
 //! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"
 //!   (billows at several scales on a base shape; a flat, rounded-off cloud base).
 
+#[cfg(test)]
+mod bench;
 pub mod camera;
 pub mod counters;
 pub mod fast_exp;
+#[cfg(test)]
+mod fixture;
 pub mod integrator;
 pub mod light;
 pub mod medium;

@@ -26,7 +26,6 @@ mod integrity;
 mod look;
 mod mesh_io;
 mod mitsuba;
-mod motion_blur;
 mod polygonize;
 mod readme_defaults;
 mod render;

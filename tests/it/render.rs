@@ -1,9 +1,7 @@
 //! Renderer tests: analytic media against closed forms, determinism across thread counts, the
-//! EXR round trip, and (ignored) the speed benchmark and the look check.
+//! EXR round trip, and (ignored) the look check. The speed benchmark, which reads the renderer's
+//! work counters, is a unit test of the library (`src/render/bench.rs`).
 //!
-//! Benchmark: `cargo test --release --test it -- --ignored --nocapture render::bench` (times, bytes
-//! allocated, light-grid nodes); with `--features counters` it also counts the frame's work
-//! (density samples, hits visited, noise stacks, shaded samples; `nephele::render::counters`).
 //! Look:      `cargo test --release --test it -- --ignored --nocapture render::look` (PNGs in /tmp)
 
 use crate::exr_support;
@@ -22,74 +20,11 @@ use nephele::render::{
 };
 use rand::{RngExt, SeedableRng};
 
-/// A blobby cloud about 2 units across: `n` ellipsoids (A = 1, B = (1+A)/A) in a body, a head
-/// and a tail, with random sizes and orientations.
-fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-    let lobes = [
-        (DVec3::new(0.0, 0.0, 0.0), 0.75),
-        (DVec3::new(0.65, 0.45, 0.1), 0.42),
-        (DVec3::new(-0.7, 0.2, -0.1), 0.3),
-    ];
-    (0..n)
-        .map(|i| {
-            let (c, r) = lobes[[0, 0, 0, 1, 1, 2][i % 6]];
-            let p = loop {
-                let p = DVec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if p.length() < 1.0 {
-                    break p;
-                }
-            };
-            let d = p.length();
-            // Smaller blobs near the lobe's surface, bigger inside.
-            let size = r * (0.45 - 0.25 * d);
-            let axes = DVec3::new(
-                size * rng.random_range(0.7..1.3),
-                size * rng.random_range(0.5..1.0),
-                size * rng.random_range(0.7..1.2),
-            );
-            let a = 1.0;
-            Blob {
-                center: c + p * (r * 0.8),
-                rotation: DQuat::from_euler(
-                    glam::EulerRot::XYZ,
-                    rng.random_range(0.0..6.3),
-                    rng.random_range(0.0..6.3),
-                    rng.random_range(0.0..6.3),
-                ),
-                semi_axes: axes,
-                a,
-                b: (1.0 + a) / a,
-            }
-        })
-        .collect()
-}
-
-fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
-    RenderSettings {
-        width,
-        height,
-        camera: Camera {
-            position: Vec3::new(0.3, 0.6, 4.2),
-            look_at: Vec3::new(0.0, 0.1, 0.0),
-            up: Vec3::Y,
-            fov_deg: 38.0,
-        },
-        sun: Sun::default(),
-        sky: Sky::default(),
-        cloud: CloudMaterial::default(),
-        exposure: 0.0,
-        length_scale: 3.5,
-        seed: 7,
-        time: 0.0,
-        quality,
-        base: None,
-    }
-}
+// The test cloud and its settings, shared with the renderer benchmark (a unit test of the
+// library, `src/render/bench.rs`).
+#[path = "../../src/render/fixture.rs"]
+mod fixture;
+use fixture::{settings, test_cloud};
 
 /// Exact chord of the ray `o + t d` (unit d) through the ball (c, r).
 fn chord(o: Vec3A, d: Vec3A, c: Vec3A, r: f32) -> f32 {
@@ -440,162 +375,10 @@ fn exr_reads_back_with_channels_and_values() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// The system allocator, counting the bytes allocated (for the benchmark's "bytes allocated").
-struct CountingAlloc;
-
-static ALLOCATED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-
-unsafe impl std::alloc::GlobalAlloc for CountingAlloc {
-    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
-        ALLOCATED.fetch_add(layout.size() as u64, std::sync::atomic::Ordering::Relaxed);
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { std::alloc::System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
-        ALLOCATED.fetch_add(layout.size() as u64, std::sync::atomic::Ordering::Relaxed);
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { std::alloc::System.alloc_zeroed(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { std::alloc::System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new: usize) -> *mut u8 {
-        ALLOCATED.fetch_add(new as u64, std::sync::atomic::Ordering::Relaxed);
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { std::alloc::System.realloc(ptr, layout, new) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
-
-/// Bytes allocated while `f` runs (by any thread).
-fn allocated<T>(f: impl FnOnce() -> T) -> (T, u64) {
-    let before = ALLOCATED.load(std::sync::atomic::Ordering::Relaxed);
-    let out = f();
-    (
-        out,
-        ALLOCATED.load(std::sync::atomic::Ordering::Relaxed) - before,
-    )
-}
-
-/// One frame's work counters, printed per frame.
-fn print_work(s: &RenderSettings, blobs: &[Blob]) {
-    use nephele::render::counters;
-    let m = BlobMedium::new(s, blobs);
-    // The light grid samples the medium without the billows it cannot hold, as a frame's does.
-    let lattice = m.for_light_grid(s);
-    counters::take();
-    let (grid, grid_bytes) = allocated(|| LightGrid::for_frame(s, &lattice));
-    let light = counters::take();
-    let (_, march_bytes) = allocated(|| render_medium(s, &m, &grid, &Film::default()));
-    let march = counters::take();
-    let size = grid.as_ref().map(|g| g.size());
-    let sun_dir = Vec3A::from(s.sun.travel_dir());
-    let h = size.map_or(1.0, |_| {
-        let (lo, hi) = m.bounds().unwrap();
-        (hi - lo).max_element() / s.light_grid_cells(Some((lo, hi))) as f32
-    });
-    let sun_s = median(
-        (0..3)
-            .map(|_| {
-                time(|| {
-                    nephele::render::light::sun_depth::SunGrid::build(&lattice, sun_dir, h, None)
-                })
-                .1
-            })
-            .collect(),
-    );
-    println!("  of which the sun's columns {sun_s:.3} s");
-    let m = |x: u64| x as f64 / 1e6;
-    println!(
-        "  light grid: {:.2} M world nodes, {:.2} M sun nodes, {:.2} M sky nodes ({:.0} MB kept); {:.0} MB allocated building it, {:.0} MB marching",
-        m(size.map_or(0, |z| z.world) as u64),
-        m(size.map_or(0, |z| z.sun) as u64),
-        m(size.map_or(0, |z| z.sky) as u64),
-        m(size.map_or(0, |z| z.bytes) as u64),
-        m(grid_bytes),
-        m(march_bytes),
-    );
-    if !counters::ENABLED {
-        println!("  (work counters: build with --features counters)");
-        return;
-    }
-    for (part, c) in [("light grid", light), ("march", march)] {
-        let samples = c[0] + c[1];
-        println!(
-            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing in the billows' band, {:.2} M fine samples beyond their reach, {:.2} M coarse samples",
-            m(samples),
-            c[2] as f64 / samples.max(1) as f64,
-            c[3] as f64 / samples.max(1) as f64,
-            m(c[4]),
-            m(c[6]),
-            m(c[5]),
-            m(c[7]),
-            m(c[8]),
-            m(c[9]),
-        );
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = Instant::now();
     let out = f();
     (out, t.elapsed().as_secs_f64())
-}
-
-#[test]
-#[ignore = "benchmark: run in release with --ignored --nocapture"]
-fn bench_frame_times() {
-    let blobs = test_cloud(400, 11);
-    for (name, s, runs) in [
-        (
-            "640x360 final",
-            settings(640, 360, Quality::final_frame()),
-            5,
-        ),
-        ("256x256 preview", settings(256, 256, Quality::preview()), 9),
-    ] {
-        let total = median(
-            (0..runs)
-                .map(|_| time(|| render_frame(&s, &blobs)).1)
-                .collect(),
-        );
-        let prep = median(
-            (0..runs)
-                .map(|_| time(|| BlobMedium::new(&s, &blobs)).1)
-                .collect(),
-        );
-        let m = BlobMedium::new(&s, &blobs);
-        let lattice = m.for_light_grid(&s);
-        let light = median(
-            (0..runs)
-                .map(|_| time(|| LightGrid::for_frame(&s, &lattice)).1)
-                .collect(),
-        );
-        let grid = LightGrid::for_frame(&s, &lattice);
-        let march = median(
-            (0..runs)
-                .map(|_| time(|| render_medium(&s, &m, &grid, &Film::default())).1)
-                .collect(),
-        );
-        let dens = median(
-            (0..runs)
-                .map(|_| time(|| render_medium_unshaded(&s, &m)).1)
-                .collect(),
-        );
-        println!(
-            "{name}: median {total:.3} s/frame = prepare {prep:.3} + light grid {light:.3} + march/density {dens:.3} + shading {:.3} (parts timed separately)",
-            march - dens,
-        );
-        print_work(&s, &blobs);
-    }
 }
 
 #[test]

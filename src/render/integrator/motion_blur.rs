@@ -47,7 +47,7 @@ use crate::rng::{Stream, item_rng, key};
 /// Largest blob travel from the frame's time to the shutter's ends, as a fraction of the light
 /// grid's longest side (the cloud's extent), that one light grid built at the frame's time
 /// lights: shadows then land at most 1 % of the cloud off, measured to keep a moving cloud
-/// within 2 % of the mean of its sub-frame renders (`tests/it/motion_blur.rs`; at 1.7 cells of a
+/// within 2 % of the mean of its sub-frame renders (`motion_blur/tests.rs`; at 1.7 cells of a
 /// 64-cell grid, 2.6 % of the extent, the error was 2.3 %). At `Final`'s 224 cells this is
 /// 2.2 cells.
 pub const MAX_LIGHT_SHIFT: f32 = 0.01;
@@ -315,14 +315,4 @@ pub fn strata(shutter: f64, n: u32, fps: f64) -> (Vec<f64>, f64) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn strata_cover_the_shutter_centred_on_the_frame() {
-        let (c, s) = strata(0.5, 4, 24.0);
-        assert!((s - 0.5 / 24.0 / 4.0).abs() < 1e-15);
-        assert!((c[0] + 0.25 / 24.0 - 0.5 * s).abs() < 1e-15);
-        assert!((c.iter().sum::<f64>()).abs() < 1e-15);
-    }
-}
+mod tests;

@@ -1,16 +1,22 @@
-//! Motion blur: a blurred frame against the mean of many unblurred sub-frame renders, a still
-//! cloud through an open shutter, a frame that holds in one part and moves in another, and bad
-//! shutters in a scene file.
-
-use crate::temp_support;
+//! Motion blur against references: a blurred frame against the mean of many unblurred sub-frame
+//! renders, a still cloud through an open shutter, a frame that holds in one part and moves in
+//! another, and bad shutters in a scene file (moved here from the integration tests: they build
+//! their shutters with [`strata`], which is the renderer's own).
 
 use glam::{DQuat, DVec3, Vec3};
-use nephele::blobby::Blob;
-use nephele::render::integrator::motion_blur::strata;
-use nephele::render::{
-    BlurReport, Camera, CloudMaterial, Frame, FrameOptions, FrameRenderer, Quality, RenderSettings,
-    Shutter, Sky, Sun, TimeSample, render_frame,
+
+use super::*;
+use crate::render::{
+    Camera, CloudMaterial, FrameOptions, FrameRenderer, Quality, Sky, Sun, render_frame,
 };
+
+#[test]
+fn strata_cover_the_shutter_centred_on_the_frame() {
+    let (c, s) = strata(0.5, 4, 24.0);
+    assert!((s - 0.5 / 24.0 / 4.0).abs() < 1e-15);
+    assert!((c[0] + 0.25 / 24.0 - 0.5 * s).abs() < 1e-15);
+    assert!((c.iter().sum::<f64>()).abs() < 1e-15);
+}
 
 /// `blobs` rendered through `shutter` (the frame renderer with an open shutter).
 fn render_frame_blurred(
@@ -229,9 +235,11 @@ fn blur_changes_the_frame_where_the_cloud_moves_and_not_where_it_holds() {
 /// error before anything renders.
 #[test]
 fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
-    use nephele::blobby::{BlobModel, save_model};
-    use nephele::scene::{self, RenderOptions, SceneError, Shot};
-    let dir = temp_support::temp_dir("blur");
+    use crate::blobby::{BlobModel, save_model};
+    use crate::scene::{self, RenderOptions, SceneError, Shot};
+    let dir = std::env::temp_dir().join(format!("nephele-blur-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
     let blobs = cloud(DVec3::ZERO);
     let model = BlobModel::from_blobs("test:cloud", 1.0, 1, blobs);
     save_model(&dir.join("model.ron"), &model).unwrap();
@@ -270,4 +278,5 @@ fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
         assert!(text.starts_with(&path.display().to_string()), "{text}");
         assert!(text.contains("[0, 1]"), "{text}");
     }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
