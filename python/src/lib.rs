@@ -12,7 +12,7 @@ use nephele::blobby::{Blob, BlobModel};
 use nephele::decompose::Primitive;
 use nephele::pipeline::{self, FitConfig};
 use nephele::render::Frame;
-use nephele::render::output::color::ColorSpace;
+use nephele::render::output::ColorSpace;
 use nephele::scene::frames::FrameSelection;
 use nephele::scene::{self, RenderOptions, SceneError as CoreSceneError, SceneFile};
 use pyo3::BoundObject;

@@ -9,7 +9,7 @@
 //! Sampling: the index box is cut into columns of 8×8 voxel columns (one OpenVDB leaf across);
 //! per column one [`Medium::begin_tile`] with a frustum around it, then per voxel column one ray
 //! along +Z and [`Medium::extinction`] at every voxel centre inside the ray's intervals (the
-//! renderer's lattice sampler, [`crate::render::medium::lattice`], which the light grid uses too). Leaves
+//! renderer's lattice sampler, `render/medium/lattice.rs`, which the light grid uses too). Leaves
 //! (8³ voxels) with no positive value are dropped. Columns run in parallel with rayon; every
 //! value is computed independently of the others, so the grid is identical at any thread count.
 
@@ -17,7 +17,7 @@ use glam::Vec3A;
 use rayon::prelude::*;
 
 use crate::render::Medium;
-use crate::render::camera::Ray;
+use crate::render::Ray;
 use crate::render::medium::lattice::{Columns, sample_bundle};
 
 /// Voxels along one side of a leaf (OpenVDB's `LeafNode` log2 dimension 3).

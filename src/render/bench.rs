@@ -11,7 +11,7 @@ use std::time::Instant;
 use glam::Vec3A;
 
 use crate::blobby::Blob;
-use crate::render::counters;
+use crate::render::counters::{self, Counter};
 use crate::render::fixture::{settings, test_cloud};
 use crate::render::light::sun_depth::SunGrid;
 use crate::render::{
@@ -96,18 +96,18 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
         return;
     }
     for (part, c) in [("light grid", light), ("march", march)] {
-        let samples = c[0] + c[1];
+        let n = |k: Counter| c[k as usize];
+        let samples = n(Counter::MarchSamples) + n(Counter::LightSamples);
         println!(
-            "  {part}: {:.2} M density samples, {:.2} hits visited a sample ({:.2} already ended), {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing in the billows' band, {:.2} M fine samples beyond their reach, {:.2} M coarse samples",
+            "  {part}: {:.2} M density samples, {:.2} hits visited a sample, {:.2} M noise stacks ({:.2} M octaves), {:.2} M shaded samples, {:.2} M fine samples that found nothing in the billows' band, {:.2} M fine samples beyond their reach, {:.2} M coarse samples",
             m(samples),
-            c[2] as f64 / samples.max(1) as f64,
-            c[3] as f64 / samples.max(1) as f64,
-            m(c[4]),
-            m(c[6]),
-            m(c[5]),
-            m(c[7]),
-            m(c[8]),
-            m(c[9]),
+            n(Counter::HitsVisited) as f64 / samples.max(1) as f64,
+            m(n(Counter::NoiseEvals)),
+            m(n(Counter::NoiseOctaves)),
+            m(n(Counter::ShadedSamples)),
+            m(n(Counter::EmptyFine)),
+            m(n(Counter::FineOutside)),
+            m(n(Counter::CoarseSamples)),
         );
     }
 }

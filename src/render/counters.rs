@@ -17,8 +17,6 @@ pub enum Counter {
     LightSamples,
     /// Blob hits whose span starts before the sample (what the density loop walks over).
     HitsVisited,
-    /// Of those, hits the sample has already left (`t > t1`): visited for nothing.
-    HitsEnded,
     /// Erosion noise stacks evaluated (each one `noise.octaves` octaves).
     NoiseEvals,
     /// March samples shaded (a light lookup and the in-scattering).
@@ -36,21 +34,8 @@ pub enum Counter {
 }
 
 /// Number of [`Counter`]s.
-pub const COUNTERS: usize = 10;
-
-/// Names in [`Counter`] order.
-pub const NAMES: [&str; COUNTERS] = [
-    "march samples",
-    "light-grid samples",
-    "hits visited",
-    "hits ended",
-    "noise stacks",
-    "shaded samples",
-    "noise octaves",
-    "empty fine samples",
-    "fine samples beyond the billows",
-    "coarse samples",
-];
+#[cfg(any(test, feature = "counters"))]
+pub(crate) const COUNTERS: usize = 9;
 
 #[cfg(feature = "counters")]
 static COUNTS: [std::sync::atomic::AtomicU64; COUNTERS] =
@@ -68,8 +53,10 @@ pub fn add(counter: Counter, n: u64) {
 /// True when the counters are compiled in.
 pub const ENABLED: bool = cfg!(feature = "counters");
 
-/// The counts since the last call, and reset them (all 0 without the feature).
-pub fn take() -> [u64; COUNTERS] {
+/// The counts since the last call, in [`Counter`] order, and reset them (all 0 without the
+/// feature). Read by the benchmark only.
+#[cfg(test)]
+pub(crate) fn take() -> [u64; COUNTERS] {
     #[cfg(feature = "counters")]
     {
         std::array::from_fn(|i| COUNTS[i].swap(0, std::sync::atomic::Ordering::Relaxed))

@@ -5,25 +5,51 @@
 //! frames so that noise anchored to it travels with it; dead or zero-size blobs are skipped).
 //! Out: a linear HDR [`Frame`], written as EXR and tone-mapped PNG by [`output`].
 //!
-//! Where is a frame rendered? In one place, [`FrameRenderer`] ([`integrator::frame_renderer`]):
-//! the blobs become a density-only [`Medium`] ([`BlobMedium::new`], [`medium`]); its light-grid
-//! copy ([`BlobMedium::for_light_grid`]) feeds the per-frame [`LightGrid`] ([`light`]: optical
-//! depth toward the sun, [`light::sun_depth`], and toward the sky cells, [`light::sky_depth`]);
-//! the [`integrator`] marches every pixel through the blob supports only (tile frustum culling,
-//! then per-ray ellipsoid intervals), evaluating the noisy density ([`medium::density`],
-//! [`medium::noise`]) and the lighting ([`light::shading`]: phase functions in [`light::phase`],
-//! the sky dome in [`light::sky_dome`], the depths from any [`ShadowDepths`]). The shot's reuse
-//! (holds, a still cloud), the shutter and the film ([`FrameOptions`]) are its options; the shot
-//! loop, `Shot::render_frame`, the statistics, the preview and motion blur all call it.
+//! # The front
 //!
-//! The front: [`FrameRenderer`] (and [`render_frame`], one frame of it), [`render_medium`] (the
-//! integrator alone, for media of one's own), the settings, [`Frame`] and [`FrameIndex`]; the
-//! folders: [`camera`], [`sampler`], [`integrator`] (march, tiles, motion blur, reuse),
-//! [`medium`] (density, blobs, noise, lattice), [`light`] (grid, sun and sky depths, sky dome,
-//! phase, shading), [`output`] (film, EXR, PNG, Cryptomatte, colour).
+//! What code outside the crate (the CLI, the Python package, the integration tests) may use;
+//! everything else in `render/` is `pub(crate)`, its sub-modules included, except [`output`].
 //!
-//! Where is sunlight computed? Its shadowing in [`light::sun_depth`] (assembled with the sky's
-//! in [`light::grid`]), its scattering toward the eye in [`light::shading`].
+//! - **Frames of blobs**: [`FrameRenderer`] (the one frame pipeline, with the shot's reuse) and
+//!   [`render_frame`] (one frame of it, once), with [`FrameOptions`]: the shutter ([`Shutter`],
+//!   its [`TimeSample`]s) and the film ([`Film`]: a [`Region`], passes, ID [`Mattes`]). Out: a
+//!   [`Frame`] (its [`Passes`] and [`IdMattes`]) and a [`RenderReport`] ([`Reuse`],
+//!   [`BlurReport`]). [`FrameIndex`] is a frame's 0-based place in its shot.
+//! - **What is seen**: [`RenderSettings`]: [`Camera`], [`Sun`], [`Sky`], [`CloudMaterial`]
+//!   ([`NoiseSettings`], a flat base [`BasePlane`] from [`CumulusBase`]), [`Quality`] from a
+//!   [`QualityPreset`]. [`CameraRays`] is the camera's ray through any point of the image (what
+//!   the EXR's and the USD stage's cameras are checked against), [`SkyDome`] the sky's radiance
+//!   (what a frame is composited over), [`phase`] the cloud's phase function.
+//! - **Media of one's own**: the integrator alone, [`render_medium`] (and
+//!   [`render_medium_unshaded`], coverage only), marches any [`Medium`] (pbrt's contract:
+//!   intervals and extinction along a [`Ray`], culled per tile by a [`Frustum`]), lit by any
+//!   [`ShadowDepths`]: [`LightDepths`] toward the sun and the [`SKY_DIRECTIONS`] sky cells
+//!   ([`sky_directions`]), from a [`LightGrid`] built from a medium, exactly through a
+//!   [`Homogeneous`] medium ([`HomogeneousLights`]), or none ([`Unshadowed`]). Media here: the
+//!   blob cloud, [`BlobMedium`], and [`Homogeneous`] in a [`Shape`], for closed forms.
+//! - **Files**: [`output`]: EXR (with the camera and provenance of [`output::FrameMetadata`]),
+//!   PNG, the EXR's colour space, Cryptomatte ids.
+//!
+//! # Inside
+//!
+//! Where is a frame rendered? In one place, [`FrameRenderer`] (`integrator/frame_renderer.rs`):
+//! the blobs become a density-only [`Medium`] ([`BlobMedium::new`], `medium/`); its light-grid
+//! copy ([`BlobMedium::for_light_grid`]) feeds the per-frame [`LightGrid`] (`light/`: optical
+//! depth toward the sun, `light/sun_depth.rs`, and toward the sky cells, `light/sky_depth.rs`);
+//! the integrator (`integrator/`) marches every pixel through the blob supports only (tile
+//! frustum culling, then per-ray ellipsoid intervals), evaluating the noisy density
+//! (`medium/density.rs`, `medium/noise.rs`) and the lighting (`light/shading.rs`: phase
+//! functions in `light/phase.rs`, the sky dome in `light/sky_dome.rs`, the depths from any
+//! [`ShadowDepths`]). The shot's reuse (holds, a still cloud), the shutter and the film
+//! ([`FrameOptions`]) are its options; the shot loop, `Shot::render_frame`, the statistics, the
+//! preview and motion blur all call it.
+//!
+//! The folders: `camera.rs`, `sampler.rs`, `integrator/` (march, tiles, motion blur, reuse),
+//! `medium/` (density, blobs, noise, lattice), `light/` (grid, sun and sky depths, sky dome,
+//! phase, shading), `output/` (film, EXR, PNG, Cryptomatte, colour).
+//!
+//! Where is sunlight computed? Its shadowing in `light/sun_depth.rs` (assembled with the sky's
+//! in `light/grid.rs`), its scattering toward the eye in `light/shading.rs`.
 //!
 //! References:
 //! - L. G. Henyey, J. L. Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93, 70–83.
@@ -33,7 +59,7 @@
 //!   Frostbite" (energy-conserving step integration, the octave scheme in real time).
 //! - K. Perlin (2002), "Improving noise", SIGGRAPH (gradient noise).
 //! - M. Wrenninge (2012), *Production Volume Rendering* (pyroclastic displacement by `|noise|`:
-//!   the billows of [`medium::noise::Billows`]).
+//!   the billows of `Billows`, `medium/noise.rs`).
 //! - A. Bouthors, F. Neyret (2004), "Modeling clouds shape", Eurographics short papers (cumulus as
 //!   puffs on puffs, each level smaller: octaves that follow the local feature size).
 //! - A. Schneider (2015, 2017), "The real-time volumetric cloudscapes of Horizon Zero Dawn"
@@ -41,34 +67,44 @@
 
 #[cfg(test)]
 mod bench;
-pub mod camera;
-pub mod counters;
-pub mod fast_exp;
+pub(crate) mod camera;
+pub(crate) mod counters;
+pub(crate) mod fast_exp;
 #[cfg(test)]
 mod fixture;
-pub mod integrator;
-pub mod light;
-pub mod medium;
-pub mod memory;
+pub(crate) mod integrator;
+pub(crate) mod light;
+pub(crate) mod medium;
+pub(crate) mod memory;
 pub mod output;
-pub mod sampler;
-pub mod settings;
+pub(crate) mod sampler;
+pub(crate) mod settings;
 
-pub use camera::{Camera, ray_ellipsoid};
+// The front. Rendering a frame of blobs:
 pub use integrator::frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
 pub use integrator::motion_blur::{BlurReport, Shutter, TimeSample};
+pub use output::cryptomatte::{IdMattes, Mattes};
+pub use output::film::{Film, Region};
+// What is rendered, and from where:
+pub use camera::{Camera, CameraRays};
+pub use settings::{
+    BasePlane, CloudMaterial, CumulusBase, NoiseSettings, Quality, QualityPreset, RenderSettings,
+    Sky, Sun,
+};
+// The integrator on media of one's own, and what it asks of them:
+pub use camera::{Frustum, Ray};
 pub use integrator::{render_medium, render_medium_unshaded};
 pub use light::grid::LightGrid;
+pub use light::phase;
+pub use light::sky_cells::{SKY_DIRECTIONS, directions as sky_directions};
 pub use light::sky_dome::SkyDome;
 pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
 pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
-pub use output::cryptomatte::{IdMattes, Mattes};
-pub use output::film::{Film, Region};
-pub use settings::{
-    CloudMaterial, MIN_LIGHT_GRID_CELLS, NoiseSettings, Quality, QualityPreset, RenderSettings,
-    Sky, Sun,
-};
+
+// The light grid's floor, for the blob medium's tests.
+#[cfg(test)]
+pub(crate) use settings::MIN_LIGHT_GRID_CELLS;
 
 use crate::blobby::Blob;
 
@@ -110,7 +146,7 @@ pub struct Passes {
 
 impl Passes {
     /// Black passes of `n` pixels.
-    pub fn zeros(n: usize) -> Passes {
+    pub(crate) fn zeros(n: usize) -> Passes {
         Passes {
             sun: vec![[0.0; 3]; n],
             sky: vec![[0.0; 3]; n],

@@ -89,8 +89,8 @@ impl Default for Sky {
 }
 
 /// The settings of the cumulus billows that displace the cloud's surface, anchored to the blobs
-/// (the scene file's `cloud.noise`; the billows themselves are
-/// [`crate::render::medium::noise::Billows`]).
+/// (the scene file's `cloud.noise`; the billows themselves are `Billows` in
+/// `medium/noise.rs`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename = "Noise", deny_unknown_fields, default)]
 pub struct NoiseSettings {
@@ -103,8 +103,7 @@ pub struct NoiseSettings {
     /// as large as its wavelength).
     pub frequency: f32,
     /// Most octaves (at most 8); octaves finer than three pixels of the frame are left out
-    /// ([`crate::render::medium::blobs::FINEST_BILLOW_PIXELS`])
-    /// (0 = smooth blobs).
+    /// (`FINEST_BILLOW_PIXELS`) (0 = smooth blobs).
     pub octaves: u32,
     /// Slow evolution of the noise, in cycles per second (0 = frozen; the noise then only
     /// moves with the blobs).
@@ -232,7 +231,7 @@ pub struct Quality {
     pub shadow_grid: u32,
     /// Smallest light-grid cell, in pixels of the frame at the camera's look-at distance: a
     /// cloud small on screen (a diffusion's first second) gets fewer than `shadow_grid` cells,
-    /// since shadow detail finer than a pixel cannot show ([`RenderSettings::light_grid_cells`]).
+    /// since shadow detail finer than a pixel cannot show (`RenderSettings::light_grid_cells`).
     pub shadow_cell_pixels: f32,
     /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
     /// only; at most 6).
@@ -245,7 +244,7 @@ pub struct Quality {
     /// Rays per pixel (stratified inside the pixel; 1 = through the pixel centre).
     pub samples: u32,
     /// Adaptive anti-aliasing of the cloud's edge: with one ray a pixel, a pixel whose ray's
-    /// coverage is partial (between [`EDGE_COVERAGE`]'s bounds) traces this many more,
+    /// coverage is partial (between `EDGE_COVERAGE`'s bounds) traces this many more,
     /// stratified inside it, and averages all of them. The silhouette against a bright sky (a
     /// backlit cloud's silver lining) then costs its edge pixels' rays only, not every
     /// pixel's. 0 or 1: off.

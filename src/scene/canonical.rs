@@ -13,7 +13,7 @@ use glam::{DMat3, DQuat, DVec3, Vec3};
 use crate::animate::BlobMotion;
 use crate::blobby::Blob;
 use crate::render::Mattes;
-use crate::render::settings::{BasePlane, CumulusBase};
+use crate::render::{BasePlane, CumulusBase};
 use crate::render::{
     Camera, CloudMaterial, Film, NoiseSettings, Quality, Region, RenderSettings, Shutter, Sky, Sun,
     TimeSample,

@@ -15,7 +15,7 @@ use super::SceneError;
 use super::camera::CameraKeyframes;
 use super::transform::TargetTransform;
 use crate::animate::Animation;
-use crate::render::output::color::ColorSpace;
+use crate::render::output::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 
 /// A scene file as written (`Scene(...)`; the struct name may also be left out).

@@ -16,8 +16,8 @@ use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
+use crate::render::BasePlane;
 use crate::render::output::cryptomatte::{self, Mattes};
-use crate::render::settings::BasePlane;
 use crate::render::{self, Film, Frame, Quality, Region, RenderSettings};
 
 /// How to render a shot (the command line's choices).

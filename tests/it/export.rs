@@ -11,7 +11,7 @@ use std::process::Command;
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
 use nephele::export::{self, DensityGrid, Leaf};
-use nephele::render::camera::Frustum;
+use nephele::render::Frustum;
 use nephele::render::{
     BlobMedium, Camera, CloudMaterial, Medium, Quality, RenderSettings, Sky, Sun,
 };
@@ -359,7 +359,7 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
     // The renderer's camera of that frame (the orbit makes it differ from frame 1's).
     let shot = scene::Shot::open(s.clone(), &opts).unwrap();
     let settings = shot.settings(5).unwrap();
-    let rays = nephele::render::camera::CameraRays::new(&settings.camera, 48, 30);
+    let rays = nephele::render::CameraRays::new(&settings.camera, 48, 30);
     let (pixels, points) = known_points(&settings.camera);
     for (want, p) in pixels.iter().zip(points) {
         let n = row_times(p, &to_ndc);
@@ -380,7 +380,7 @@ fn exr_carries_the_camera_and_reprojects_a_point() {
 /// Pixels near the corners and the centre of a 48×30 image, and world points on the renderer's
 /// rays through them (at different distances).
 fn known_points(camera: &Camera) -> (Vec<[f64; 2]>, Vec<[f64; 3]>) {
-    let rays = nephele::render::camera::CameraRays::new(camera, 48, 30);
+    let rays = nephele::render::CameraRays::new(camera, 48, 30);
     let pixels = vec![[3.25, 2.5], [44.5, 27.75], [40.0, 4.0], [20.5, 16.25]];
     let points = pixels
         .iter()

@@ -29,8 +29,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use nephele::render::camera::CameraRays;
-use nephele::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
+use nephele::render::CameraRays;
+use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
 use nephele::render::{BlobMedium, Film, LightGrid, RenderSettings, SkyDome, render_medium};
 use nephele::scene::{RenderOptions, Shot, load_scene};
 

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
-use nephele::render::light::phase::cloud_phase;
+use nephele::render::phase::cloud_phase;
 use nephele::render::{
     BlobMedium, Camera, CloudMaterial, Film, Homogeneous, HomogeneousLights, LightGrid,
     NoiseSettings, Quality, RenderSettings, ShadowDepths, Shape, Sky, Sun, output, render_frame,
@@ -73,7 +73,7 @@ fn uniform_ball_coverage_matches_beer_lambert() {
         step: 0.05,
     };
     let frame = render_medium_unshaded(&s, &medium);
-    let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
+    let cam = nephele::render::CameraRays::new(&s.camera, 64, 36);
     let mut checked = 0;
     for (x, y) in [(32, 18), (28, 14), (40, 20), (33, 9), (24, 25), (1, 1)] {
         let ray = cam.pixel_ray(x, y);
@@ -101,7 +101,7 @@ fn single_blob_sphere_coverage_is_close_to_analytic() {
     );
     let (blob, r) = (hard_ball(&mut s, 5.0), BALL_RADIUS);
     let frame = render_frame(&s, &[blob]);
-    let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
+    let cam = nephele::render::CameraRays::new(&s.camera, 64, 36);
     for (x, y) in [(32, 18), (30, 16), (35, 21)] {
         let ray = cam.pixel_ray(x, y);
         let ch = chord(ray.origin, ray.dir, BALL_CENTER, r);
@@ -127,7 +127,7 @@ fn edge_samples_anti_alias_only_the_partly_covered_pixels() {
     let one = render_frame(&s, std::slice::from_ref(&blob));
     s.quality.edge_samples = 16;
     let aa = render_frame(&s, std::slice::from_ref(&blob));
-    let cam = nephele::render::camera::CameraRays::new(&s.camera, 64, 36);
+    let cam = nephele::render::CameraRays::new(&s.camera, 64, 36);
     let sigma = 0.5; // density × length unit⁻¹
     let (mut edge, mut err_one, mut err_aa) = (0, 0.0, 0.0);
     for y in 0..36u32 {
@@ -206,7 +206,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
         sun_dir: Vec3A::Z,
     };
     let frame = render_medium(&s, &medium, &lights, &Film::default());
-    let cam = nephele::render::camera::CameraRays::new(&s.camera, 9, 9);
+    let cam = nephele::render::CameraRays::new(&s.camera, 9, 9);
     for (x, y) in [(4, 4), (0, 0), (8, 3), (2, 7)] {
         let dir = cam.pixel_ray(x, y).dir;
         let cos = dir.z;
@@ -512,7 +512,7 @@ fn light_debug() {
     let m = BlobMedium::new(&s, &blobs);
     let g = LightGrid::for_frame(&s, &m).unwrap();
     for x in [-1.2f32, -0.9, -0.6, -0.3, 0.0, 0.3, 0.6, 0.9] {
-        println!("x {x}: {:?}", g.lookup(Vec3A::new(x, 0.0, 0.0)));
+        println!("x {x}: {:?}", g.depths(Vec3A::new(x, 0.0, 0.0)));
     }
 }
 
@@ -650,7 +650,7 @@ fn silhouette(s: &RenderSettings, mesh: &nephele::mesh::Mesh, dilate: f32) -> Ve
 #[ignore = "diagnostic: light-grid accuracy"]
 fn light_grid_against_exact_march() {
     use nephele::render::Medium;
-    use nephele::render::camera::{Frustum, Ray};
+    use nephele::render::{Frustum, Ray};
     let model = {
         let mesh = nephele::mesh::load("builtin:duck").unwrap();
         let cfg = nephele::pipeline::FitConfig {

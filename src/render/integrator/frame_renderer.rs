@@ -50,7 +50,7 @@ static BEAUTY: Film = Film {
 #[derive(Clone, Copy, Debug)]
 pub struct FrameOptions<'a> {
     /// The open shutter (motion blur: the cloud integrated over its time samples); `None`, or
-    /// a shutter in which nothing moves ([`Shutter::is_still`]), for an instant.
+    /// a shutter in which nothing moves (`Shutter::is_still`), for an instant.
     pub shutter: Option<&'a Shutter>,
     /// What the frame is rendered into: its window, the passes and the ID mattes. Every pixel
     /// rendered has the whole frame's bits whatever it asks for.

@@ -38,9 +38,7 @@ pub mod motion_blur;
 mod march;
 mod tiles;
 
-pub use march::{MAX_OPTICAL_STEP, MIN_TRANSMITTANCE};
 pub(crate) use march::{MarchFn, PixelResult, PixelSum, march, shaded_march};
-pub use tiles::TILE;
 pub(crate) use tiles::render_film;
 
 use crate::render::Frame;

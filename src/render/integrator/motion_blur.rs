@@ -88,7 +88,7 @@ pub struct BlurReport {
     /// Largest travel of a blob centre from its frame position within the shutter, in cells
     /// of the frame's light grid.
     pub shift_cells: f32,
-    /// Light grids built (1, or one per stratum past [`MAX_LIGHT_SHIFT`] of the extent).
+    /// Light grids built (1, or one per stratum past `MAX_LIGHT_SHIFT` of the extent).
     pub light_grids: usize,
 }
 

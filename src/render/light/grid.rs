@@ -23,8 +23,8 @@ use crate::render::medium::Medium;
 use crate::render::medium::lattice::{GridShape, trilinear};
 use crate::render::settings::RenderSettings;
 
-/// Optical depths toward the sun (on a light-aligned grid of the same spacing, [`SunGrid`]) and
-/// toward each sky cell on a grid [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times coarser (sky light comes from a broad
+/// Optical depths toward the sun (on a light-aligned grid of the same spacing, `SunGrid`) and
+/// toward each sky cell on a grid `SKY_SPACING` times coarser (sky light comes from a broad
 /// source: its shadows are soft, and 26 sweeps at full resolution would cost more than the
 /// frame).
 #[derive(Clone, Debug)]
@@ -36,12 +36,14 @@ pub struct LightGrid {
     /// [`SKY_DIRECTIONS`] depths per coarse node, node-major, in steps of [`SKY_DEPTH_STEP`].
     sky: Vec<u16>,
     /// Nodes of the world grid the sky's is [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times as coarse as.
+    #[cfg(test)]
     world_nodes: usize,
     /// Working buffers of the sky's build, kept for the next frame's.
     work: SkyWork,
 }
 
 /// What a light grid holds, for the benchmark's work counters.
+#[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LightGridSize {
     /// Nodes of the world grid at the light grid's spacing (the sky's is [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times
@@ -57,7 +59,7 @@ pub struct LightGridSize {
 
 impl LightGrid {
     /// The light grid of a frame: `medium` lit by `settings.sun` at
-    /// [`RenderSettings::light_grid_cells`] on the longest side of its bounds (the quality's
+    /// `RenderSettings::light_grid_cells` on the longest side of its bounds (the quality's
     /// `shadow_grid`, fewer for a cloud small on screen). `None` when the medium is empty.
     pub fn for_frame<M: Medium>(settings: &RenderSettings, medium: &M) -> Option<LightGrid> {
         LightGrid::for_frame_reusing(settings, medium, None)
@@ -109,13 +111,15 @@ impl LightGrid {
             sky_inv_h: 1.0 / sky_shape.h,
             sky_shape,
             sky,
+            #[cfg(test)]
             world_nodes: shape.len(),
             work,
         })
     }
 
-    /// Node counts and memory.
-    pub fn size(&self) -> LightGridSize {
+    /// Node counts and memory (for the benchmark).
+    #[cfg(test)]
+    pub(crate) fn size(&self) -> LightGridSize {
         LightGridSize {
             world: self.world_nodes,
             sun: self.sun.len(),

@@ -22,7 +22,7 @@ use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions};
 use crate::render::medium::Homogeneous;
 
 /// Optical depths from a point toward the lights: the sun, and each sky cell of
-/// [`crate::render::light::sky_cells`] (in the order of [`directions`]).
+/// `light/sky_cells.rs` (in the order of [`directions`], `render::sky_directions`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightDepths {
     /// Toward the sun.

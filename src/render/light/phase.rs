@@ -2,8 +2,8 @@
 //!
 //! In: the cosine `μ` between the light's travel direction and the scattered direction, and the
 //! asymmetry `g`. Out: the phase function's value per steradian (each integrates to 1 over the
-//! sphere). Used by the shader ([`crate::render::light::shading`]) for the sun and the octaves, and by the sky
-//! cells ([`crate::render::light::sky_cells`]).
+//! sphere). Used by the shader (`light/shading.rs`) for the sun and the octaves, and by the sky
+//! cells (`light/sky_cells.rs`).
 //!
 //! - Henyey & Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93: the phase function.
 

@@ -49,7 +49,7 @@ pub enum SkyDome {
         state: Box<hw_skymodel::rgb::SkyState>,
         /// Unit vector toward the sun (above the horizon).
         to_sun: Vec3,
-        /// Radiance scale (the sun's intensity × [`HW_SCALE`]).
+        /// Radiance scale (the sun's intensity × `HW_SCALE`).
         scale: f32,
         /// Radiance of the ground: a Lambertian plane of the ground albedo lit by the sun and
         /// the sky, `ρ/π·(E_sun + E_sky)`.
@@ -100,7 +100,7 @@ impl SkyDome {
     /// Sky radiance seen in direction `dir` (unit; linear RGB). Gradient: horizon → zenith
     /// above the horizon (square-root ramp in `dir.y`), horizon → dim ground below.
     /// Hosek–Wilkie: the model above the horizon; below, the ground lit by the sun and the sky
-    /// (albedo `ground_albedo`), fading into the horizon's haze within [`HAZE`] of it.
+    /// (albedo `ground_albedo`), fading into the horizon's haze within `HAZE` of it.
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         match self {
             SkyDome::Gradient { zenith, horizon } => {

@@ -169,19 +169,16 @@ impl SunGrid {
     }
 
     /// Number of `f32` the grid stores (the depth per node, and the extinction until
-    /// released).
-    pub fn stored_values(&self) -> usize {
+    /// released; for the benchmark).
+    #[cfg(test)]
+    pub(crate) fn stored_values(&self) -> usize {
         self.values.len() + self.sigma.len()
     }
 
-    /// Number of nodes.
-    pub fn len(&self) -> usize {
+    /// Number of nodes (for the benchmark).
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.shape.len()
-    }
-
-    /// True when the grid has no node (never after [`SunGrid::build`]).
-    pub fn is_empty(&self) -> bool {
-        self.shape.is_empty()
     }
 
     /// The sampled extinction at world point `x` as the sky's coarser grid sees it: the samples

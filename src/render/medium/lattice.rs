@@ -49,11 +49,6 @@ impl GridShape {
         self.dims[0] * self.dims[1] * self.dims[2]
     }
 
-    /// True when the grid has no node (never for [`GridShape::covering`]).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     /// World position of node `(i, j, k)`.
     pub fn node(&self, i: usize, j: usize, k: usize) -> Vec3A {
         self.origin + Vec3A::new(i as f32, j as f32, k as f32) * self.h

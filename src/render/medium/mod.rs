@@ -8,8 +8,10 @@
 //! [`crate::render::light::grid::LightGrid::build`]), so one medium can be lit by another's grid.
 //!
 //! The blob cloud ([`crate::render::medium::blobs::BlobMedium`]) is the production medium. `Medium` is a trait
-//! (not an enum) only so that the integrator is monomorphised per medium with no dispatch in the
-//! per-sample loop; outside code is not expected to add media.
+//! (not an enum) so that the integrator is monomorphised per medium with no dispatch in the
+//! per-sample loop; it is on the public front so that a medium of one's own (the Mitsuba
+//! comparison's dense grid, `tests/it/mitsuba_support/grid_medium.rs`) goes through the same
+//! integrator ([`crate::render::render_medium`]).
 
 pub mod blobs;
 pub mod density;
@@ -40,7 +42,7 @@ pub trait Medium: Sync {
     fn begin_ray(&self, ray: &Ray, scratch: &mut Self::Scratch);
 
     /// Show the following rays the medium `dt` seconds after the time it stands for (motion
-    /// blur inside one time sample; [`crate::render::integrator::motion_blur`]). Default: the medium does not move.
+    /// blur inside one time sample; `integrator/motion_blur.rs`). Default: the medium does not move.
     #[inline]
     fn set_time_offset(&self, _scratch: &mut Self::Scratch, _dt: f32) {}
 

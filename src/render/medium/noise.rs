@@ -240,7 +240,8 @@ impl Billows {
     }
 
     /// Number of octaves.
-    pub fn octaves(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn octaves(&self) -> usize {
         self.n
     }
 
@@ -278,6 +279,7 @@ impl Billows {
 
     /// Total depth `Σ_k a·λ_k·s(F/λ_k)`: the displacement lies in
     /// `[−CREASE·total, (1 − CREASE)·total]`.
+    #[cfg(test)]
     #[inline]
     pub fn total_depth(&self, feature: f32) -> f32 {
         self.depths(feature).2
@@ -327,6 +329,7 @@ impl Billows {
 
     /// Displacement (world units, positive outward) at noise point `p` for octave depths
     /// `depths` (from [`Billows::depths`]; only the first `n` are evaluated).
+    #[cfg(test)]
     #[inline]
     pub fn displacement(&self, p: Vec3A, depths: &[f32; MAX_OCTAVES], n: usize) -> f32 {
         let mut sum = 0.0;

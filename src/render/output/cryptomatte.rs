@@ -3,8 +3,8 @@
 //!
 //! Names: the caller gives one name per matte and each blob's matte ([`Mattes`]; the scene
 //! names one per aggregation cluster or morph/diffusion category). ID: the name's
-//! MurmurHash3_x86_32 (seed 0, [`murmur3_32`]) as the bits of an f32 whose exponent is clamped
-//! to `[1, 254]` ([`hash_to_float`]: never a NaN, an infinity or a denormal).
+//! MurmurHash3_x86_32 (seed 0, `murmur3_32`) as the bits of an f32 whose exponent is clamped
+//! to `[1, 254]` (`hash_to_float`: never a NaN, an infinity or a denormal).
 //!
 //! Coverage: each march sample's share of the pixel's opacity, `T·(1 − e^{−σh})` (what it adds
 //! to alpha), goes to the matte of the blob whose field term dominates the density there
@@ -41,7 +41,7 @@ pub const OBJECT_LAYER: &str = "CryptoObject";
 /// list; [`NO_MATTE`] or past the end: none).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mattes {
-    /// The Cryptomatte layer (type) name, e.g. [`OBJECT_LAYER`].
+    /// The Cryptomatte layer (type) name, e.g. `OBJECT_LAYER`.
     pub layer: String,
     /// Matte names; the matte's index is its position.
     pub names: Vec<String>,
@@ -146,7 +146,7 @@ pub fn layer_key(layer: &str) -> String {
     format!("{:08x}", murmur3_32(layer.as_bytes(), 0))[..7].to_string()
 }
 
-/// The float id of a matte name: [`hash_to_float`] of its [`murmur3_32`] with seed 0.
+/// The float id of a matte name: `hash_to_float` of its `murmur3_32` with seed 0.
 pub fn name_id(name: &str) -> f32 {
     hash_to_float(murmur3_32(name.as_bytes(), 0))
 }

@@ -27,9 +27,11 @@
 //! ID mattes ([`Frame::mattes`]): channels `CryptoObject00.R/G/B/A`, … and the
 //! `cryptomatte/<key>/…` header attributes of [`crate::render::output::cryptomatte`].
 
-pub mod color;
+pub(crate) mod color;
 pub mod cryptomatte;
-pub mod film;
+pub(crate) mod film;
+
+pub use color::ColorSpace;
 
 use std::io::Cursor;
 use std::path::Path;
@@ -38,7 +40,6 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::render::camera::CameraRays;
-use crate::render::output::color::ColorSpace;
 use crate::render::{Frame, RenderSettings};
 
 /// Write `frame` as an OpenEXR file with R, G, B, A (and Z depth) channels, atomically.

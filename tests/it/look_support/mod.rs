@@ -8,8 +8,8 @@
 
 use glam::Vec3A;
 use nephele::blobby::{Blob, BlobField, THRESHOLD, polygonize::polygonize};
+use nephele::render::CameraRays;
 use nephele::render::RenderSettings;
-use nephele::render::camera::CameraRays;
 
 /// A binary image, row-major.
 #[derive(Clone, Debug)]

@@ -5,7 +5,7 @@
 
 use glam::Vec3A;
 use nephele::export::grid::{DensityGrid, Leaf};
-use nephele::render::camera::{Frustum, Ray};
+use nephele::render::{Frustum, Ray};
 use nephele::render::{LightDepths, Medium, ShadowDepths};
 
 /// The grid, dense over its active box.
@@ -147,7 +147,7 @@ impl<'a> ExactLights<'a> {
 
 impl ShadowDepths for ExactLights<'_> {
     fn depths(&self, x: Vec3A) -> LightDepths {
-        let dirs = nephele::render::light::sky_cells::directions();
+        let dirs = nephele::render::sky_directions();
         let sun = self.grid.depth(x, -self.sun_dir);
         LightDepths {
             sun,

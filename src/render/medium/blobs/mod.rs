@@ -23,8 +23,6 @@ mod gather;
 #[cfg(test)]
 mod tests;
 
-pub use gather::BlobScratch;
-
 /// Finest billow wavelength in pixels of the frame (at the camera's look-at distance): finer
 /// octaves would only alias at one sample per pixel.
 pub const FINEST_BILLOW_PIXELS: f32 = 3.0;
@@ -275,8 +273,8 @@ impl BlobMedium {
         self.noise_from_world[i] * rel + self.noise_offset[i]
     }
 
-    /// The medium a frame's light grid samples: [`BlobMedium::for_lattice`] at the grid's
-    /// resolution for `settings` ([`RenderSettings::light_grid_cells`]).
+    /// The medium a frame's light grid samples: `BlobMedium::for_lattice` at the grid's
+    /// resolution for `settings` (`RenderSettings::light_grid_cells`).
     pub fn for_light_grid(&self, settings: &RenderSettings) -> BlobMedium {
         self.for_lattice(settings.light_grid_cells(self.bounds()))
     }
