@@ -43,7 +43,7 @@ impl Ray {
 /// `t` is then the same parameter as in world space). `None` on a miss, a tangent touch, a ball
 /// entirely behind the origin, or a zero direction (its own branch: the ray does not move).
 #[inline]
-pub fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f32, f32)> {
+pub(crate) fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f32, f32)> {
     let a = local_dir.length_squared();
     if a <= f32::MIN_POSITIVE {
         return None;
@@ -126,7 +126,7 @@ impl CameraRays {
     }
 
     /// The frustum of the pixel rectangle `[x0, x1) × [y0, y1)`.
-    pub fn frustum(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Frustum {
+    pub(crate) fn frustum(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Frustum {
         let (x0, y0, x1, y1) = (x0 as f32, y0 as f32, x1 as f32, y1 as f32);
         let c = [
             self.dir(x0, y0),

@@ -10,7 +10,7 @@
 /// What is counted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(usize)]
-pub enum Counter {
+pub(crate) enum Counter {
     /// Density evaluations by the camera march.
     MarchSamples,
     /// Density evaluations while filling the light grid.
@@ -43,7 +43,7 @@ static COUNTS: [std::sync::atomic::AtomicU64; COUNTERS] =
 
 /// Add `n` to `counter` (nothing without the `counters` feature).
 #[inline(always)]
-pub fn add(counter: Counter, n: u64) {
+pub(crate) fn add(counter: Counter, n: u64) {
     #[cfg(feature = "counters")]
     COUNTS[counter as usize].fetch_add(n, std::sync::atomic::Ordering::Relaxed);
     #[cfg(not(feature = "counters"))]
@@ -51,7 +51,7 @@ pub fn add(counter: Counter, n: u64) {
 }
 
 /// True when the counters are compiled in.
-pub const ENABLED: bool = cfg!(feature = "counters");
+pub(crate) const ENABLED: bool = cfg!(feature = "counters");
 
 /// The counts since the last call, in [`Counter`] order, and reset them (all 0 without the
 /// feature). Read by the benchmark only.

@@ -11,7 +11,7 @@ const MAX_DEPTH: f32 = 87.0;
 
 /// `e^{−τ}` for `τ ≥ 0` (a negative or NaN `τ` is taken as 0, a depth above 87 as 87).
 #[inline(always)]
-pub fn exp_neg(tau: f32) -> f32 {
+pub(crate) fn exp_neg(tau: f32) -> f32 {
     const LOG2E: f32 = std::f32::consts::LOG2_E;
     // ln 2 split in two: the first part has few bits, so `n·C1` is exact.
     const C1: f32 = 0.693_359_4;
@@ -35,7 +35,7 @@ pub fn exp_neg(tau: f32) -> f32 {
 
 /// [`exp_neg`] of every depth of `taus`.
 #[inline(always)]
-pub fn exp_neg_all<const N: usize>(taus: &[f32; N]) -> [f32; N] {
+pub(crate) fn exp_neg_all<const N: usize>(taus: &[f32; N]) -> [f32; N] {
     let mut out = [0.0f32; N];
     for (o, &t) in out.iter_mut().zip(taus) {
         *o = exp_neg(t);

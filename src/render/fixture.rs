@@ -11,7 +11,7 @@ use super::{Blob, Camera, CloudMaterial, Quality, RenderSettings, Sky, Sun};
 
 /// A blobby cloud about 2 units across: `n` ellipsoids (A = 1, B = (1+A)/A) in a body, a head
 /// and a tail, with random sizes and orientations.
-pub fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
+pub(crate) fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
     let lobes = [
         (DVec3::new(0.0, 0.0, 0.0), 0.75),
@@ -58,7 +58,7 @@ pub fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
 
 /// The settings the renderer tests frame [`test_cloud`] with: `width × height`, `quality`, the
 /// default sun, sky and cloud, seed 7.
-pub fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
+pub(crate) fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
     RenderSettings {
         width,
         height,

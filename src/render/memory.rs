@@ -10,22 +10,22 @@ use crate::render::settings::{Quality, QualityPreset};
 /// Bytes held per pixel while a frame is rendered and written: the frame (RGB, alpha, depth:
 /// 20; the tiles write straight into it), the tone-mapped PNG and its encoding (6), the EXR's
 /// channel copies and encoding (40), rounded up.
-pub const BYTES_PER_PIXEL: u64 = 70;
+pub(crate) const BYTES_PER_PIXEL: u64 = 70;
 
 /// Bytes per node of the light grid: the sun's light-aligned grid over the supports' light-space
 /// box (depth and transmittance, and the extinction while the sky is built, on up to 1.7× as
 /// many nodes: 21), a 27th of a coarse sky node (26 `u16` depths, extinction and up to 7
 /// `u16` sweep buffers: 70 / 27), rounded up.
-pub const BYTES_PER_GRID_NODE: u64 = 24;
+pub(crate) const BYTES_PER_GRID_NODE: u64 = 24;
 
 /// Estimated peak bytes to render and write one `width × height` frame at `quality`.
-pub fn frame_bytes(width: u32, height: u32, quality: &Quality) -> u64 {
+pub(crate) fn frame_bytes(width: u32, height: u32, quality: &Quality) -> u64 {
     let grid = (quality.shadow_grid as u64 + 3).pow(3);
     width as u64 * height as u64 * BYTES_PER_PIXEL + grid * BYTES_PER_GRID_NODE
 }
 
 /// Memory available to this process in bytes, when the system says (Linux `MemAvailable`).
-pub fn available_bytes() -> Option<u64> {
+pub(crate) fn available_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -33,7 +33,7 @@ pub fn available_bytes() -> Option<u64> {
 }
 
 /// Human-readable size (`1.5 GB`).
-pub fn format_bytes(b: u64) -> String {
+pub(crate) fn format_bytes(b: u64) -> String {
     let b = b as f64;
     if b >= 1e12 {
         format!("{:.1} TB", b / 1e12)
@@ -46,7 +46,7 @@ pub fn format_bytes(b: u64) -> String {
 
 /// `Ok` unless a `width × height` frame has more pixels than a `u32` index can address; checked
 /// when a scene is loaded, whatever machine loads it.
-pub fn check_size(width: u32, height: u32, preset: QualityPreset) -> Result<(), String> {
+pub(crate) fn check_size(width: u32, height: u32, preset: QualityPreset) -> Result<(), String> {
     let pixels = width as u64 * height as u64;
     if pixels > u32::MAX as u64 {
         return Err(format!(
@@ -62,7 +62,7 @@ pub fn check_size(width: u32, height: u32, preset: QualityPreset) -> Result<(), 
 /// `Ok` when a `width × height` frame at `quality` fits in the memory available on this
 /// machine; otherwise the message says what it needs and what there is. Checked where the
 /// frames are rendered (a farm's head node that only loads the scene may have far less).
-pub fn check_available(width: u32, height: u32, quality: &Quality) -> Result<(), String> {
+pub(crate) fn check_available(width: u32, height: u32, quality: &Quality) -> Result<(), String> {
     let need = frame_bytes(width, height, quality);
     match available_bytes() {
         Some(have) if need > have => Err(format!(

@@ -147,7 +147,7 @@ impl BasePlane {
     /// Density factor at world height `y`: 1 at and above the base, fading linearly to 0 at
     /// `softness` below it.
     #[inline]
-    pub fn factor(&self, y: f32) -> f32 {
+    pub(crate) fn factor(&self, y: f32) -> f32 {
         if y >= self.y {
             1.0
         } else if self.softness > 0.0 {
@@ -214,11 +214,11 @@ pub enum QualityPreset {
 /// A pixel's first ray is at the cloud's edge when its coverage `1 − T` lies strictly inside
 /// these bounds ([`Quality::edge_samples`]): past the upper one the march stopped in the
 /// opaque body, below the lower one it met no cloud worth resolving.
-pub const EDGE_COVERAGE: (f32, f32) = (1e-3, 0.999);
+pub(crate) const EDGE_COVERAGE: (f32, f32) = (1e-3, 0.999);
 
 /// Fewest cells [`RenderSettings::light_grid_cells`] gives a light grid (a cloud a few pixels
 /// wide still gets a shadowed side).
-pub const MIN_LIGHT_GRID_CELLS: u32 = 24;
+pub(crate) const MIN_LIGHT_GRID_CELLS: u32 = 24;
 
 /// Speed/quality trade-offs of the ray marcher.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -342,7 +342,7 @@ impl RenderSettings {
     /// [`crate::render::Medium::bounds`] gives): `quality.shadow_grid`, or fewer where its cells would
     /// be finer than `quality.shadow_cell_pixels` of a pixel ([`RenderSettings::pixel_footprint`]),
     /// and at least [`MIN_LIGHT_GRID_CELLS`].
-    pub fn light_grid_cells(&self, bounds: Option<(glam::Vec3A, glam::Vec3A)>) -> u32 {
+    pub(crate) fn light_grid_cells(&self, bounds: Option<(glam::Vec3A, glam::Vec3A)>) -> u32 {
         let extent = bounds.map_or(0.0, |(lo, hi)| (hi - lo).max_element());
         let cell = self.quality.shadow_cell_pixels * self.pixel_footprint();
         let res = self.quality.shadow_grid;
@@ -355,7 +355,7 @@ impl RenderSettings {
 
     /// World size of one pixel at the camera's look-at distance (the scale of the finest detail
     /// the frame resolves).
-    pub fn pixel_footprint(&self) -> f32 {
+    pub(crate) fn pixel_footprint(&self) -> f32 {
         let c = &self.camera;
         let dist = (c.look_at - c.position).length();
         let half = (0.5 * c.fov_deg.to_radians()).tan();

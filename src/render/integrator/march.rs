@@ -13,11 +13,11 @@ use crate::render::output::cryptomatte::Coverage;
 use crate::render::output::film::Film;
 
 /// Transmittance below which a ray stops (its coverage is then `1 − T ≥ 0.999`).
-pub const MIN_TRANSMITTANCE: f32 = 1e-3;
+pub(crate) const MIN_TRANSMITTANCE: f32 = 1e-3;
 
 /// Largest optical thickness of one fine step, reached where the transmittance has fallen to
 /// `optical_step / MAX_OPTICAL_STEP`.
-pub const MAX_OPTICAL_STEP: f32 = 1.0;
+pub(crate) const MAX_OPTICAL_STEP: f32 = 1.0;
 
 /// Most samples one ray may take (guards against unbounded intervals).
 const MAX_STEPS: u32 = 1_000_000;

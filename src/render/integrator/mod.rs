@@ -32,8 +32,8 @@
 //! monomorphised for what it accumulates besides the beauty — the render passes, the ID mattes'
 //! per-sample opacity by [`Medium::label`] ([`crate::render::output::cryptomatte`]) — chosen once per frame.
 
-pub mod frame_renderer;
-pub mod motion_blur;
+pub(crate) mod frame_renderer;
+pub(crate) mod motion_blur;
 
 mod march;
 mod tiles;

@@ -50,7 +50,7 @@ use crate::rng::{Stream, item_rng, key};
 /// within 2 % of the mean of its sub-frame renders (`motion_blur/tests.rs`; at 1.7 cells of a
 /// 64-cell grid, 2.6 % of the extent, the error was 2.3 %). At `Final`'s 224 cells this is
 /// 2.2 cells.
-pub const MAX_LIGHT_SHIFT: f32 = 0.01;
+pub(crate) const MAX_LIGHT_SHIFT: f32 = 0.01;
 
 /// One time sample of a frame's shutter.
 #[derive(Clone, Debug, PartialEq)]
@@ -75,7 +75,7 @@ pub struct Shutter {
 impl Shutter {
     /// True when every time sample's blobs equal `frame` (nothing moves while the shutter is
     /// open: the blurred frame is the frame itself).
-    pub fn is_still(&self, frame: &[Blob]) -> bool {
+    pub(crate) fn is_still(&self, frame: &[Blob]) -> bool {
         self.samples
             .iter()
             .all(|s| s.blobs == frame && s.velocity.iter().all(|v| *v == DVec3::ZERO))
@@ -304,7 +304,7 @@ pub(crate) fn render_slices(
 
 /// Centres of `n` equal strata of a shutter `shutter` frames long, centred on the frame, in
 /// seconds from the frame at `fps`; and the stratum's length in seconds.
-pub fn strata(shutter: f64, n: u32, fps: f64) -> (Vec<f64>, f64) {
+pub(crate) fn strata(shutter: f64, n: u32, fps: f64) -> (Vec<f64>, f64) {
     let n = n.max(1);
     let length = shutter / fps;
     let stratum = length / n as f64;

@@ -12,7 +12,7 @@ use crate::render::output::film::{Film, Region};
 use crate::render::settings::RenderSettings;
 
 /// Tile side in pixels.
-pub const TILE: u32 = 16;
+pub(crate) const TILE: u32 = 16;
 
 /// One row of tiles: the frame's buffers for its [`TILE`] rows of pixels (full width), which
 /// its tiles' pixels are written straight into (no per-tile results held for the whole frame:

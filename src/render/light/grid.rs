@@ -45,7 +45,7 @@ pub struct LightGrid {
 /// What a light grid holds, for the benchmark's work counters.
 #[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LightGridSize {
+pub(crate) struct LightGridSize {
     /// Nodes of the world grid at the light grid's spacing (the sky's is [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times
     /// as coarse).
     pub world: usize,
@@ -66,7 +66,7 @@ impl LightGrid {
     }
 
     /// [`LightGrid::for_frame`], reusing the buffers of `previous` (a shot's last grid).
-    pub fn for_frame_reusing<M: Medium>(
+    pub(crate) fn for_frame_reusing<M: Medium>(
         settings: &RenderSettings,
         medium: &M,
         previous: Option<LightGrid>,
@@ -89,7 +89,7 @@ impl LightGrid {
     /// The sun's depths are summed along light columns straight from the medium ([`SunGrid`]);
     /// the sky's are swept through a world grid of [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times the spacing whose
     /// extinction is the sun grid's samples, prefiltered: the medium is sampled once per frame.
-    pub fn build_reusing<M: Medium>(
+    pub(crate) fn build_reusing<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,
         res: u32,
@@ -147,7 +147,7 @@ impl LightGrid {
     /// Trilinear depths at `x` (clamped to the grids; their border nodes are outside the cloud,
     /// so points outside see the border values).
     #[inline]
-    pub fn lookup(&self, x: Vec3A) -> LightDepths {
+    pub(crate) fn lookup(&self, x: Vec3A) -> LightDepths {
         let sun = self.sun.lookup(x);
         let mut sky = [0.0f32; SKY_DIRECTIONS];
         trilinear::<SKY_DIRECTIONS, u16>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);

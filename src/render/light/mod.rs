@@ -8,13 +8,13 @@
 //! this apart from the medium lets a light grid built from one medium (e.g. the cloud at the
 //! frame's time) light the march through another (the cloud at a motion-blur sample time).
 
-pub mod grid;
+pub(crate) mod grid;
 pub mod phase;
-pub mod shading;
-pub mod sky_cells;
-pub mod sky_depth;
-pub mod sky_dome;
-pub mod sun_depth;
+pub(crate) mod shading;
+pub(crate) mod sky_cells;
+pub(crate) mod sky_depth;
+pub(crate) mod sky_dome;
+pub(crate) mod sun_depth;
 
 use glam::Vec3A;
 

@@ -26,7 +26,7 @@ use crate::render::settings::RenderSettings;
 /// [`InScattered::total`] (up to rounding: `total` keeps the summation order the renderer has
 /// always used, so frames do not change bits).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InScattered {
+pub(crate) struct InScattered {
     /// The sun's colour × intensity, common to both sun terms.
     sun_radiance: Vec3A,
     /// Single scattering of sunlight (a scalar weight of `sun_radiance`).
@@ -42,32 +42,32 @@ pub struct InScattered {
 impl InScattered {
     /// Sunlight scattered once.
     #[inline]
-    pub fn sun(&self) -> Vec3A {
+    pub(crate) fn sun(&self) -> Vec3A {
         self.sun_radiance * self.sun_single
     }
 
     /// Sky light scattered once (through the sky cells).
     #[inline]
-    pub fn sky(&self) -> Vec3A {
+    pub(crate) fn sky(&self) -> Vec3A {
         self.sky
     }
 
     /// The multiple-scattering approximation: the sun's and the sky's octaves beyond the first.
     #[inline]
-    pub fn multiple(&self) -> Vec3A {
+    pub(crate) fn multiple(&self) -> Vec3A {
         self.sun_radiance * self.sun_multiple + self.sky_multiple
     }
 
     /// All of it.
     #[inline]
-    pub fn total(&self) -> Vec3A {
+    pub(crate) fn total(&self) -> Vec3A {
         self.sun_radiance * (self.sun_multiple + self.sun_single) + self.sky + self.sky_multiple
     }
 }
 
 /// Per-frame shading constants.
 #[derive(Clone, Debug)]
-pub struct Shading {
+pub(crate) struct Shading {
     /// Unit direction the sunlight travels.
     pub sun_dir: Vec3A,
     /// Sun colour × intensity.
@@ -89,11 +89,11 @@ pub struct Shading {
 }
 
 /// Upper bound on the multiple-scattering octaves.
-pub const MAX_OCTAVES: u32 = 6;
+pub(crate) const MAX_OCTAVES: u32 = 6;
 
 /// What a ray's direction fixes for all its samples: the phase weights toward the eye.
 #[derive(Clone, Debug)]
-pub struct RayWeights {
+pub(crate) struct RayWeights {
     /// `b^i · p(μ, c^i g)` of each octave for the sun.
     pub sun: [f32; MAX_OCTAVES as usize],
     /// RGB weight of each sky cell's transmittance (single scattering).
@@ -103,7 +103,7 @@ pub struct RayWeights {
 impl Shading {
     /// Constants for `settings` (a zero sun direction falls back to straight down; without
     /// `cloud.multiple_scattering` one octave: single scattering).
-    pub fn new(settings: &RenderSettings) -> Shading {
+    pub(crate) fn new(settings: &RenderSettings) -> Shading {
         let sun = &settings.sun;
         let dome = SkyDome::new(&settings.sky, sun);
         let tint = SkyDome::sun_tint(&settings.sky, sun);
@@ -128,7 +128,7 @@ impl Shading {
 
     /// Phase weights for a ray with unit direction `dir`.
     #[inline]
-    pub fn ray_weights(&self, dir: Vec3A) -> RayWeights {
+    pub(crate) fn ray_weights(&self, dir: Vec3A) -> RayWeights {
         // Scattered toward the eye: the outgoing direction is −dir.
         let mu = -self.sun_dir.dot(dir);
         let mut sun = [0.0; MAX_OCTAVES as usize];
@@ -148,7 +148,7 @@ impl Shading {
     /// the phase function, [`SkyLight`]): `albedo · delta · L_sky(dir) · τ · e^{−τ}` for the
     /// ray's optical depth `tau` through the cloud.
     #[inline]
-    pub fn forward_sky(&self, dir: Vec3A, tau: f32) -> Vec3A {
+    pub(crate) fn forward_sky(&self, dir: Vec3A, tau: f32) -> Vec3A {
         let k = self.albedo * self.sky.delta() * tau * (-tau).exp();
         if k <= 0.0 {
             return Vec3A::ZERO;
@@ -165,7 +165,7 @@ impl Shading {
     /// the sun through its phase weight, the sky isotropically — half the sphere's light from
     /// the sky above through the upward depth, half from the ground below through the downward.
     #[inline]
-    pub fn in_scattered(&self, w: &RayWeights, tau: &LightDepths) -> InScattered {
+    pub(crate) fn in_scattered(&self, w: &RayWeights, tau: &LightDepths) -> InScattered {
         let mut sky = Vec3A::ZERO;
         for (wk, t) in w.sky.iter().zip(exp_neg_all(&tau.sky)) {
             sky += *wk * t;
@@ -211,12 +211,12 @@ impl Shading {
 
 /// Share of the isotropic sky estimate that the multiple-scattering octaves turn toward the
 /// eye. Calibrated against Mitsuba's full transport of the same sky (README).
-pub const SKY_PHASE: f32 = 0.64;
+pub(crate) const SKY_PHASE: f32 = 0.64;
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
 /// fitted with [`MS_ANISOTROPY`] against Mitsuba's full transport of a side-lit and a backlit
 /// shot together (README, `tests/it/mitsuba.rs`).
-pub const MS_CONTRIBUTION: f32 = 0.85;
+pub(crate) const MS_CONTRIBUTION: f32 = 0.85;
 /// Anisotropy factor `c` of each further octave. Multiply scattered light in a forward-peaked
 /// cloud stays forward-peaked: with `c = ½` a backlit cloud came out 21 % too dark.
-pub const MS_ANISOTROPY: f32 = 0.7;
+pub(crate) const MS_ANISOTROPY: f32 = 0.7;

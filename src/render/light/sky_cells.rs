@@ -25,9 +25,9 @@ use crate::render::light::sky_dome::SkyDome;
 pub const SKY_DIRECTIONS: usize = 26;
 
 /// Index of straight up (+Y) in [`directions`].
-pub const UP: usize = 2;
+pub(crate) const UP: usize = 2;
 /// Index of straight down (−Y) in [`directions`].
-pub const DOWN: usize = 3;
+pub(crate) const DOWN: usize = 3;
 
 /// The unit cell directions (pointing from the cloud toward the sky): faces first (`±X, ±Y,
 /// ±Z`), then edges, then corners.
@@ -62,7 +62,7 @@ pub fn directions() -> [Vec3A; SKY_DIRECTIONS] {
 
 /// The sky as single scattering sees it for one frame.
 #[derive(Clone, Debug)]
-pub struct SkyLight {
+pub(crate) struct SkyLight {
     dirs: [Vec3A; SKY_DIRECTIONS],
     /// Mean radiance of each cell times its solid angle (linear RGB).
     cell_power: [Vec3A; SKY_DIRECTIONS],
@@ -83,7 +83,7 @@ pub struct SkyLight {
 impl SkyLight {
     /// Cells of `dome` for a cloud with phase asymmetry `g` (the two-lobe
     /// [`crate::render::light::phase::cloud_phase`]).
-    pub fn new(dome: &SkyDome, g: f32) -> SkyLight {
+    pub(crate) fn new(dome: &SkyDome, g: f32) -> SkyLight {
         let dirs = directions();
         // Bin a uniform sampling of the sphere (uniform in y and azimuth) into the nearest cell.
         let (ny, nphi) = (48, 96);
@@ -129,7 +129,7 @@ impl SkyLight {
     /// Sky radiance behind a ray with unit direction `dir`, as the delta part scatters it
     /// on: the sky averaged over the forward lobe around `dir`.
     #[inline]
-    pub fn forward_radiance(&self, dir: Vec3A) -> Vec3A {
+    pub(crate) fn forward_radiance(&self, dir: Vec3A) -> Vec3A {
         self.forward.lookup(dir)
     }
 
@@ -138,7 +138,7 @@ impl SkyLight {
     /// scaled so that the weights add up to the smooth part's exact share of the whole sky
     /// (prefiltered): an unshadowed sample receives exactly what the sky sends, and shadows
     /// only redistribute it by cell.
-    pub fn ray_weights(&self, dir: Vec3A) -> [Vec3A; SKY_DIRECTIONS] {
+    pub(crate) fn ray_weights(&self, dir: Vec3A) -> [Vec3A; SKY_DIRECTIONS] {
         // Light from cell direction ω travels along −ω and leaves toward the eye along −dir.
         let mut w = [Vec3A::ZERO; SKY_DIRECTIONS];
         let mut total = Vec3A::ZERO;
@@ -158,7 +158,7 @@ impl SkyLight {
     }
 
     /// Weight of the phase function's delta (straight-on) part.
-    pub fn delta(&self) -> f32 {
+    pub(crate) fn delta(&self) -> f32 {
         self.delta
     }
 }

@@ -41,7 +41,7 @@ const SWEEPS_AT_ONCE: usize = 7;
 /// octave's transmittance (`e^{−τ/8}` with four octaves) is 10⁻⁷. Half the memory of `f32` (the
 /// sky's 26 depths a node were the light grid's largest buffer) for a depth error of at most
 /// 10⁻³, a transmittance error of 0.1 %.
-pub const SKY_DEPTH_STEP: f32 = 1.0 / 512.0;
+pub(crate) const SKY_DEPTH_STEP: f32 = 1.0 / 512.0;
 
 /// `τ ≥ 0` in steps of [`SKY_DEPTH_STEP`], rounded, saturating at the largest step (`as`
 /// saturates; no call to `round`, which is a library call without SSE4.1).
@@ -121,11 +121,11 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 /// (9.38 %), the multiple-scattering means and base/top within 0.001 of two's — with the
 /// surface shift ([`SURFACE_SHIFT`]) kept in world units. Kept in world units is the point: a
 /// shift of one sky cell at three made the duck 2 % too bright (5.9 %).
-pub const SKY_SPACING: usize = 3;
+pub(crate) const SKY_SPACING: usize = 3;
 
 /// Shift of the stored sky depths toward the light, in cells of the light grid (not of the sky
 /// grid: see [`SKY_SPACING`]; two, one sky cell when that was twice as coarse; see `sweep`).
-pub const SURFACE_SHIFT: f32 = 2.0;
+pub(crate) const SURFACE_SHIFT: f32 = 2.0;
 
 /// Optical depth from every node toward the light (light travelling along unit `dir`), stored
 /// `shift` (world units) toward the light and quantized, into `out.depths`.

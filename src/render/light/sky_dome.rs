@@ -138,7 +138,7 @@ impl SkyDome {
 
     /// Mean radiance of the upper hemisphere (cosine-free average), the ambient light from
     /// above.
-    pub fn upper_mean(&self) -> Vec3 {
+    pub(crate) fn upper_mean(&self) -> Vec3 {
         match self {
             // ∫ √y dy over [0, 1] = 2/3 (uniform solid angle in the upper hemisphere is uniform y).
             SkyDome::Gradient { zenith, horizon } => horizon.lerp(*zenith, 2.0 / 3.0),
@@ -147,7 +147,7 @@ impl SkyDome {
     }
 
     /// Mean radiance of the lower hemisphere (the ground).
-    pub fn lower_mean(&self) -> Vec3 {
+    pub(crate) fn lower_mean(&self) -> Vec3 {
         match self {
             SkyDome::Gradient { horizon, .. } => horizon.lerp(*horizon * GROUND, 2.0 / 3.0),
             SkyDome::HosekWilkie { .. } => self.hemisphere_mean(-1.0),

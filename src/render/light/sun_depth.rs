@@ -41,7 +41,7 @@ const BUNDLE_COLUMNS: usize = 8;
 
 /// Depth toward the sun on a light-aligned grid.
 #[derive(Clone, Debug, Default)]
-pub struct SunGrid {
+pub(crate) struct SunGrid {
     /// World → light coordinates (rows: along the light, across, across).
     to_light: Mat3A,
     /// Node grid in light coordinates; the light travels along its `x` axis, so a column is a
@@ -57,7 +57,7 @@ pub struct SunGrid {
 
 /// World → light rotation for sunlight travelling along `sun_dir` (rows: along the light, then
 /// two directions across it).
-pub fn light_frame(sun_dir: Vec3A) -> Mat3A {
+pub(crate) fn light_frame(sun_dir: Vec3A) -> Mat3A {
     let along = sun_dir.normalize_or(Vec3A::NEG_Y);
     let helper = if along.x.abs() < 0.9 {
         Vec3A::X
@@ -74,7 +74,7 @@ impl SunGrid {
     /// light-aligned grid of spacing `h` over the medium's light-space box. `None` when the
     /// medium is empty. `reuse` lends its buffer (a previous frame's grid), so a shot does not
     /// allocate and zero a new one every frame.
-    pub fn build<M: Medium>(
+    pub(crate) fn build<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,
         h: f32,
@@ -164,7 +164,7 @@ impl SunGrid {
 
     /// Free the sampled extinction ([`SunGrid::coarse_extinction`] gives 0 after this): it is
     /// needed only to build the sky's coarse grid.
-    pub fn release_extinction(&mut self) {
+    pub(crate) fn release_extinction(&mut self) {
         self.sigma = Vec::new();
     }
 
@@ -185,7 +185,7 @@ impl SunGrid {
     /// blurred by `[¼ ½ ¼]` per axis, then trilinear — a filter about two cells wide (0
     /// outside the grid: its border nodes lie outside the cloud).
     #[inline]
-    pub fn coarse_extinction(&self, x: Vec3A) -> f32 {
+    pub(crate) fn coarse_extinction(&self, x: Vec3A) -> f32 {
         if self.sigma.is_empty() {
             return 0.0;
         }
@@ -203,7 +203,7 @@ impl SunGrid {
     /// `τ` toward the sun at world point `x` (clamped to the grid, whose border lies outside
     /// the cloud).
     #[inline]
-    pub fn lookup(&self, x: Vec3A) -> f32 {
+    pub(crate) fn lookup(&self, x: Vec3A) -> f32 {
         let mut out = [0.0f32; 1];
         trilinear::<1, f32>(
             &self.shape,

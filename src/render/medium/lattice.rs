@@ -20,7 +20,7 @@ use crate::render::medium::Medium;
 /// Regular node grid: node `(i, j, k)` sits at `origin + h·(i, j, k)`, flat index
 /// `i + nx·(j + ny·k)`.
 #[derive(Clone, Debug, Default)]
-pub struct GridShape {
+pub(crate) struct GridShape {
     /// Position of node (0, 0, 0).
     pub origin: Vec3A,
     /// Node spacing (cubic cells).
@@ -32,7 +32,7 @@ pub struct GridShape {
 impl GridShape {
     /// A grid covering `[lo, hi]` padded by one cell on every side, with about `res` cells on
     /// the longest side (`res ≥ 2`).
-    pub fn covering(lo: Vec3A, hi: Vec3A, res: u32) -> GridShape {
+    pub(crate) fn covering(lo: Vec3A, hi: Vec3A, res: u32) -> GridShape {
         let size = (hi - lo).max(Vec3A::splat(1e-6));
         let h = size.max_element() / res.max(2) as f32;
         let origin = lo - Vec3A::splat(h);
@@ -45,12 +45,12 @@ impl GridShape {
     }
 
     /// Number of nodes.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.dims[0] * self.dims[1] * self.dims[2]
     }
 
     /// World position of node `(i, j, k)`.
-    pub fn node(&self, i: usize, j: usize, k: usize) -> Vec3A {
+    pub(crate) fn node(&self, i: usize, j: usize, k: usize) -> Vec3A {
         self.origin + Vec3A::new(i as f32, j as f32, k as f32) * self.h
     }
 }
@@ -59,7 +59,7 @@ impl GridShape {
 /// accumulated into `out`. The values may be stored narrower than `f32` (e.g. quantized `u16`,
 /// which the caller scales).
 #[inline]
-pub fn trilinear<const C: usize, T: Copy + Into<f32>>(
+pub(crate) fn trilinear<const C: usize, T: Copy + Into<f32>>(
     shape: &GridShape,
     inv_h: f32,
     v: &[T],
@@ -96,7 +96,7 @@ pub fn trilinear<const C: usize, T: Copy + Into<f32>>(
 /// `length` along `dir` (`u`, `v`, `dir` orthonormal). In f64 so that the nearly parallel side
 /// planes of [`Columns::frustum`] are accurate.
 #[derive(Clone, Copy, Debug)]
-pub struct Columns {
+pub(crate) struct Columns {
     /// Start of column `(0, 0)`.
     pub start: DVec3,
     /// Unit step between columns `a` and `a + 1` (over `h`).
@@ -116,7 +116,7 @@ impl Columns {
     /// rounding cannot cull a piece at an edge: a pyramid whose sides pass through the padded
     /// rectangle's edges at the columns' start, with its apex `64·length` behind, so it is
     /// almost a prism (1.6 % wider at the far end) and culls nearly as tightly as the bundle.
-    pub fn frustum(&self, a: Range<usize>, b: Range<usize>) -> Frustum {
+    pub(crate) fn frustum(&self, a: Range<usize>, b: Range<usize>) -> Frustum {
         let (a0, a1) = (a.start as f64 - 0.5, a.end as f64 - 0.5);
         let (b0, b1) = (b.start as f64 - 0.5, b.end as f64 - 0.5);
         let at = |a: f64, b: f64| self.start + (self.u * a + self.v * b) * self.h;
@@ -141,7 +141,7 @@ impl Columns {
 /// the bundle's frustum, then per column its ray `ray(a, b)` (the caller's, so the caller owns
 /// its rounding; it must lie inside the bundle) through [`Medium::begin_ray`], then
 /// `visit(scratch, a, b, ray)`, which reads the intervals and evaluates what it needs.
-pub fn sample_bundle<M: Medium>(
+pub(crate) fn sample_bundle<M: Medium>(
     medium: &M,
     scratch: &mut M::Scratch,
     columns: &Columns,

@@ -13,10 +13,10 @@
 //! comparison's dense grid, `tests/it/mitsuba_support/grid_medium.rs`) goes through the same
 //! integrator ([`crate::render::render_medium`]).
 
-pub mod blobs;
-pub mod density;
-pub mod lattice;
-pub mod noise;
+pub(crate) mod blobs;
+pub(crate) mod density;
+pub(crate) mod lattice;
+pub(crate) mod noise;
 mod noise_simd;
 
 use glam::{Mat3A, Vec3A};

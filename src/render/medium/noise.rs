@@ -63,13 +63,13 @@ pub(crate) fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// it, else SSE2, [`crate::render::medium::noise_simd`]), the same operations in the same order as the portable
 /// [`gradient_noise_scalar`], so the bits are the same on every machine.
 #[inline]
-pub fn gradient_noise(p: Vec3A) -> f32 {
+pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
     crate::render::medium::noise_simd::gradient_noise(p)
 }
 
 /// [`gradient_noise`] one corner at a time (the reference the SIMD version must equal).
 #[inline]
-pub fn gradient_noise_scalar(p: Vec3A) -> f32 {
+pub(crate) fn gradient_noise_scalar(p: Vec3A) -> f32 {
     let f = p.floor();
     let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
     let r = p - f;
@@ -91,7 +91,7 @@ pub fn gradient_noise_scalar(p: Vec3A) -> f32 {
 }
 
 /// Wavelength ratio between billow octaves: slightly off 2 so octave lattices do not line up.
-pub const LACUNARITY: f32 = 2.03;
+pub(crate) const LACUNARITY: f32 = 2.03;
 
 /// Shift between octaves (noise units), so the lattice zeros at the origin do not coincide.
 const OCTAVE_SHIFT: Vec3A = Vec3A::new(17.31, -9.77, 5.13);
@@ -108,13 +108,13 @@ const EVOLVE_DIR: [Vec3A; 3] = [
 /// where `n` crosses zero (the creases between puffs), rising steeply and rounding off on top
 /// (the puffs of cumulus; Wrenninge's pyroclastic `|noise|`, rounded).
 #[inline]
-pub fn billow(p: Vec3A) -> f32 {
+pub(crate) fn billow(p: Vec3A) -> f32 {
     let x = (2.0 * gradient_noise(p).abs()).min(1.0);
     x * (2.0 - x)
 }
 
 /// Most octaves [`Billows`] holds.
-pub const MAX_OCTAVES: usize = 8;
+pub(crate) const MAX_OCTAVES: usize = 8;
 
 /// Share of an octave's depth that lies below the surface: a billow pushes the surface out by
 /// up to `(1 − CREASE)·a_k` on its top and cuts in by up to `CREASE·a_k` in its creases. A
@@ -122,7 +122,7 @@ pub const MAX_OCTAVES: usize = 8;
 /// tops push out, which keeps the outline of a small cloud crisp (at 0.65 a young one-blob
 /// puff's outline came out soft), at the cost of a cloud a few percent inside the model's
 /// surface on average (silhouette coverage 0.9–1.0 of the model's).
-pub const CREASE: f32 = 0.70;
+pub(crate) const CREASE: f32 = 0.70;
 
 /// Hurst exponent of the octaves' depths: octave `k` is `a·λ_k·(λ_0/λ_k)^(1−H)` deep. `H = 1`
 /// would be strictly self-similar (depth in proportion to wavelength); measured cloud outlines
@@ -130,7 +130,7 @@ pub const CREASE: f32 = 0.70;
 /// `H ≈ 0.65`). 0.9 lets the finest octaves show on a young, small cloud's outline; rougher
 /// (0.7) puts more detail at the pixel scale than one ray a pixel resolves (the duck's single
 /// scattering against Mitsuba went from 4.9 % to 5.2 %).
-pub const HURST: f32 = 0.9;
+pub(crate) const HURST: f32 = 0.9;
 
 /// Ratios `F / λ` (local feature size over an octave's wavelength) between which an octave
 /// fades in: absent on a part smaller than 0.2 of its wavelength, full on one 0.6 as large.
@@ -148,7 +148,7 @@ const FADE_IN: (f32, f32) = (0.2, 0.6);
 /// outward), `a_k = a·λ_k·(λ_0/λ_k)^(1−H)` octave `k`'s depth, `s` a smoothstep over
 /// [`FADE_IN`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Billows {
+pub(crate) struct Billows {
     n: usize,
     /// World wavelength of each octave.
     wavelength: [f32; MAX_OCTAVES],
@@ -171,7 +171,7 @@ impl Billows {
     /// [`LACUNARITY`] times finer, none finer than `finest`; octave 0 `amplitude × largest` deep,
     /// the others `amplitude × wavelength × (largest/wavelength)^(1−`[`HURST`]`)`;
     /// evolution `phase` (noise units, 0 = frozen).
-    pub fn new(octaves: u32, largest: f32, finest: f32, amplitude: f32, phase: f32) -> Self {
+    pub(crate) fn new(octaves: u32, largest: f32, finest: f32, amplitude: f32, phase: f32) -> Self {
         let amplitude = amplitude.max(0.0);
         let mut b = Billows {
             n: 0,
@@ -223,13 +223,13 @@ impl Billows {
     /// An upper bound of [`Billows::total_depth`] for any feature size (each octave at full
     /// depth): where even it cannot reach a point, no billow can.
     #[inline]
-    pub fn max_total(&self) -> f32 {
+    pub(crate) fn max_total(&self) -> f32 {
         self.max_total
     }
 
     /// The same billows without the octaves finer than `finest` (world units): for sampling
     /// on a lattice that cannot hold them (the light grid).
-    pub fn coarsened(&self, finest: f32) -> Self {
+    pub(crate) fn coarsened(&self, finest: f32) -> Self {
         let mut b = *self;
         b.n = self.wavelength[..self.n]
             .iter()
@@ -249,7 +249,7 @@ impl Billows {
     /// number of leading octaves that are non-zero, and the depths' sum (in octave order: the
     /// bits of [`Billows::total_depth`]).
     #[inline]
-    pub fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize, f32) {
+    pub(crate) fn depths(&self, feature: f32) -> ([f32; MAX_OCTAVES], usize, f32) {
         let mut d = [0.0; MAX_OCTAVES];
         let mut n = 0;
         // From −0.0, as `Sum` folds: the bits of `d[..n].iter().sum()` also for `n = 0`.
@@ -281,7 +281,7 @@ impl Billows {
     /// `[−CREASE·total, (1 − CREASE)·total]`.
     #[cfg(test)]
     #[inline]
-    pub fn total_depth(&self, feature: f32) -> f32 {
+    pub(crate) fn total_depth(&self, feature: f32) -> f32 {
         self.depths(feature).2
     }
 
@@ -291,7 +291,7 @@ impl Billows {
     /// answer (`Err`), so the fine octaves run only where they can still matter. `points` are
     /// the blobs' noise points (advanced in place).
     #[inline]
-    pub fn blend<R>(
+    pub(crate) fn blend<R>(
         &self,
         points: &mut [Vec3A],
         weights: &[f32],
@@ -331,7 +331,7 @@ impl Billows {
     /// `depths` (from [`Billows::depths`]; only the first `n` are evaluated).
     #[cfg(test)]
     #[inline]
-    pub fn displacement(&self, p: Vec3A, depths: &[f32; MAX_OCTAVES], n: usize) -> f32 {
+    pub(crate) fn displacement(&self, p: Vec3A, depths: &[f32; MAX_OCTAVES], n: usize) -> f32 {
         let mut sum = 0.0;
         let mut q = p;
         for o in 0..n.min(self.n) {

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 /// CIE xy chromaticities of a space's red, green and blue primaries and its white point.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Chromaticities {
+pub(crate) struct Chromaticities {
     /// Red primary `(x, y)`.
     pub red: [f64; 2],
     /// Green primary.
@@ -27,7 +27,7 @@ pub struct Chromaticities {
 }
 
 /// Rec.709 / sRGB primaries with the D65 white (OpenEXR's default chromaticities).
-pub const REC709: Chromaticities = Chromaticities {
+pub(crate) const REC709: Chromaticities = Chromaticities {
     red: [0.64, 0.33],
     green: [0.30, 0.60],
     blue: [0.15, 0.06],
@@ -35,7 +35,7 @@ pub const REC709: Chromaticities = Chromaticities {
 };
 
 /// ACES AP1 primaries (ACEScg) with the ACES white (≈ D60).
-pub const AP1: Chromaticities = Chromaticities {
+pub(crate) const AP1: Chromaticities = Chromaticities {
     red: [0.713, 0.293],
     green: [0.165, 0.830],
     blue: [0.128, 0.044],
@@ -54,7 +54,7 @@ pub enum ColorSpace {
 
 impl ColorSpace {
     /// The space's chromaticities (what the EXR's `chromaticities` attribute says).
-    pub fn chromaticities(self) -> Chromaticities {
+    pub(crate) fn chromaticities(self) -> Chromaticities {
         match self {
             ColorSpace::Rec709 => REC709,
             ColorSpace::ACEScg => AP1,
@@ -80,7 +80,7 @@ impl ColorSpace {
 
 /// The RGB → XYZ matrix of a space (SMPTE RP 177): columns are the primaries' XYZ, scaled so
 /// that RGB `(1, 1, 1)` is the white point with `Y = 1`.
-pub fn rgb_to_xyz(c: &Chromaticities) -> DMat3 {
+pub(crate) fn rgb_to_xyz(c: &Chromaticities) -> DMat3 {
     let xyz = |[x, y]: [f64; 2]| DVec3::new(x / y, 1.0, (1.0 - x - y) / y);
     let primaries = DMat3::from_cols(xyz(c.red), xyz(c.green), xyz(c.blue));
     let scale = primaries.inverse() * xyz(c.white);
@@ -92,7 +92,7 @@ pub fn rgb_to_xyz(c: &Chromaticities) -> DMat3 {
 }
 
 /// Bradford chromatic adaptation of XYZ from white `from` to white `to` (xy).
-pub fn bradford(from: [f64; 2], to: [f64; 2]) -> DMat3 {
+pub(crate) fn bradford(from: [f64; 2], to: [f64; 2]) -> DMat3 {
     // Rows of the Bradford cone response matrix.
     let ma = DMat3::from_cols_array(&[
         0.8951, -0.7502, 0.0389, //
@@ -105,7 +105,7 @@ pub fn bradford(from: [f64; 2], to: [f64; 2]) -> DMat3 {
 }
 
 /// The linear RGB conversion from space `from` to space `to`, adapting the white by Bradford.
-pub fn conversion(from: &Chromaticities, to: &Chromaticities) -> DMat3 {
+pub(crate) fn conversion(from: &Chromaticities, to: &Chromaticities) -> DMat3 {
     rgb_to_xyz(to).inverse() * bradford(from.white, to.white) * rgb_to_xyz(from)
 }
 

@@ -29,13 +29,13 @@ pub const RANKS: usize = 6;
 
 /// Distinct mattes a pixel accumulates before further ones are dropped (their light is in the
 /// beauty, not in any matte); the [`RANKS`] largest are written.
-pub const SLOTS: usize = 16;
+pub(crate) const SLOTS: usize = 16;
 
 /// No matte (an empty rank; a blob that belongs to none).
 pub const NO_MATTE: u32 = u32::MAX;
 
 /// The layer name of object mattes.
-pub const OBJECT_LAYER: &str = "CryptoObject";
+pub(crate) const OBJECT_LAYER: &str = "CryptoObject";
 
 /// The mattes asked for: their names, and each blob's matte (by index in the frame's blob
 /// list; [`NO_MATTE`] or past the end: none).
@@ -60,7 +60,7 @@ pub struct Rank {
 
 impl Rank {
     /// An empty rank.
-    pub const EMPTY: Rank = Rank {
+    pub(crate) const EMPTY: Rank = Rank {
         matte: NO_MATTE,
         coverage: 0.0,
     };
@@ -79,7 +79,7 @@ pub struct IdMattes {
 
 impl IdMattes {
     /// Empty ranks for `n` pixels of `mattes`.
-    pub fn empty(mattes: &Mattes, n: usize) -> IdMattes {
+    pub(crate) fn empty(mattes: &Mattes, n: usize) -> IdMattes {
         IdMattes {
             layer: mattes.layer.clone(),
             names: mattes.names.clone(),
@@ -88,12 +88,12 @@ impl IdMattes {
     }
 
     /// The float id of each matte.
-    pub fn ids(&self) -> Vec<f32> {
+    pub(crate) fn ids(&self) -> Vec<f32> {
         self.names.iter().map(|n| name_id(n)).collect()
     }
 
     /// The EXR channels of the pixels `pixels` (indices, in the file's order): `(name, values)`.
-    pub fn channels(&self, pixels: &[usize]) -> Vec<(String, Vec<f32>)> {
+    pub(crate) fn channels(&self, pixels: &[usize]) -> Vec<(String, Vec<f32>)> {
         let ids = self.ids();
         let mut out = Vec::new();
         for set in 0..RANKS.div_ceil(2) {
@@ -118,7 +118,7 @@ impl IdMattes {
 
     /// The header attributes `(name, value)`: `cryptomatte/<key>/name`, `/hash`,
     /// `/conversion` and `/manifest`.
-    pub fn header(&self) -> Vec<(String, String)> {
+    pub(crate) fn header(&self) -> Vec<(String, String)> {
         let key = layer_key(&self.layer);
         let manifest: BTreeMap<&str, String> = self
             .names
@@ -153,14 +153,14 @@ pub fn name_id(name: &str) -> f32 {
 
 /// The spec's `uint32_to_float32`: the hash's bits as an f32 with the exponent clamped to
 /// `[1, 254]` (sign and mantissa kept), so an id is never NaN, infinite or denormal.
-pub fn hash_to_float(hash: u32) -> f32 {
+pub(crate) fn hash_to_float(hash: u32) -> f32 {
     let mantissa = hash & ((1 << 23) - 1);
     let exponent = ((hash >> 23) & 0xff).clamp(1, 254);
     f32::from_bits((hash & (1 << 31)) | (exponent << 23) | mantissa)
 }
 
 /// MurmurHash3_x86_32 (Austin Appleby's, public domain) of `data` with `seed`.
-pub fn murmur3_32(data: &[u8], seed: u32) -> u32 {
+pub(crate) fn murmur3_32(data: &[u8], seed: u32) -> u32 {
     const C1: u32 = 0xcc9e_2d51;
     const C2: u32 = 0x1b87_3593;
     let mix = |k: u32| k.wrapping_mul(C1).rotate_left(15).wrapping_mul(C2);

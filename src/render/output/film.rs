@@ -37,7 +37,7 @@ impl Region {
 
     /// Parse `x0,y0,x1,y1` (pixels of a `width × height` frame, `x1`, `y1` exclusive) and check
     /// that it is a non-empty window inside the frame; the error says what is wrong.
-    pub fn parse(text: &str, width: u32, height: u32) -> Result<Region, String> {
+    pub(crate) fn parse(text: &str, width: u32, height: u32) -> Result<Region, String> {
         let parts: Vec<&str> = text.split(',').map(str::trim).collect();
         let malformed = || {
             format!(
@@ -86,7 +86,7 @@ impl Region {
     }
 
     /// The part of `other` inside this window, `None` when they do not meet.
-    pub fn intersect(&self, other: &Region) -> Option<Region> {
+    pub(crate) fn intersect(&self, other: &Region) -> Option<Region> {
         let r = Region {
             x0: self.x0.max(other.x0),
             y0: self.y0.max(other.y0),

@@ -53,7 +53,7 @@ pub fn write_exr_with(path: &Path, frame: &Frame, meta: &FrameMetadata) -> std::
 }
 
 /// The EXR file's bytes (see the module doc for the channels).
-pub fn encode_exr(frame: &Frame) -> std::io::Result<Vec<u8>> {
+pub(crate) fn encode_exr(frame: &Frame) -> std::io::Result<Vec<u8>> {
     encode_exr_with(frame, None)
 }
 
@@ -374,14 +374,14 @@ pub fn tonemapped(frame: &Frame, settings: &RenderSettings) -> image::RgbImage {
 
 /// ACES filmic tone curve (Narkowicz 2015 fit), `[0, ∞) → [0, 1]`.
 #[inline]
-pub fn aces(x: f32) -> f32 {
+pub(crate) fn aces(x: f32) -> f32 {
     let x = x.max(0.0);
     ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
 }
 
 /// sRGB transfer function for linear `v ∈ [0, 1]`.
 #[inline]
-pub fn srgb_encode(v: f32) -> f32 {
+pub(crate) fn srgb_encode(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
     if v <= 0.003_130_8 {
         12.92 * v

@@ -25,21 +25,21 @@ mod tests;
 
 /// Finest billow wavelength in pixels of the frame (at the camera's look-at distance): finer
 /// octaves would only alias at one sample per pixel.
-pub const FINEST_BILLOW_PIXELS: f32 = 3.0;
+pub(crate) const FINEST_BILLOW_PIXELS: f32 = 3.0;
 
 /// Blobs smaller than this fraction of the largest (mean support radius) are specks that do
 /// not set the march step ([`BlobMedium`]'s `step_for`).
-pub const SPECK: f32 = 0.05;
+pub(crate) const SPECK: f32 = 0.05;
 
 /// Smallest `A` the renderer gives a blob: the shell between a blob's iso-surface and the end
 /// of its support must hold the billows' tops (at the fitted minimum, 0.05, it is 2 % of the
 /// radius, and the billows flattened against the support into a thin glassy dome).
-pub const MIN_RENDER_A: f64 = 0.6;
+pub(crate) const MIN_RENDER_A: f64 = 0.6;
 
 /// `(A', B')` with `A' ≥` [`MIN_RENDER_A`] and the blob's own iso-surface unchanged:
 /// `(1 + A')(1 − 1/B') = (1 + A)(1 − 1/B)` (for `t = 1`). A blob that cannot reach the iso-level
 /// alone (`B ≤ 1`) is kept as it is.
-pub fn roomy_support(a: f64, b: f64) -> (f64, f64) {
+pub(crate) fn roomy_support(a: f64, b: f64) -> (f64, f64) {
     if a >= MIN_RENDER_A || b <= 1.0 {
         return (a, b);
     }
@@ -92,7 +92,7 @@ impl BlobMedium {
     /// their centres' velocities (`velocity[i]` for `blobs[i]`), so that a ray may ask for the
     /// cloud up to `sweep` seconds either side of it ([`crate::render::Medium::set_time_offset`]: each blob
     /// moves with its centre's velocity; rotation and growth are held for that short while).
-    pub fn moving(
+    pub(crate) fn moving(
         settings: &RenderSettings,
         blobs: &[Blob],
         velocity: &[glam::DVec3],
@@ -104,7 +104,7 @@ impl BlobMedium {
     }
 
     /// Use `step` as the coarse march step (all time samples of a frame march alike).
-    pub fn set_step(&mut self, step: f32) {
+    pub(crate) fn set_step(&mut self, step: f32) {
         self.step = step;
     }
 
@@ -231,12 +231,12 @@ impl BlobMedium {
     }
 
     /// Number of live blobs.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.center.len()
     }
 
     /// True when no blob is live.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.center.is_empty()
     }
 
@@ -282,7 +282,7 @@ impl BlobMedium {
     /// The same medium without the billows finer than two cells of a lattice of `res` cells
     /// on the longest side of its bounds: for the light grid, where they would only alias (the
     /// shadows they cast are below the grid's resolution anyway), at a fraction of the cost.
-    pub fn for_lattice(&self, res: u32) -> BlobMedium {
+    pub(crate) fn for_lattice(&self, res: u32) -> BlobMedium {
         match self.bounds() {
             Some(bounds) => self.for_lattice_over(bounds, res),
             None => self.clone(),
@@ -291,7 +291,7 @@ impl BlobMedium {
 
     /// [`BlobMedium::for_lattice`] for a lattice of `res` cells on the longest side of
     /// `bounds` (a box wider than the medium's own: motion blur's per-stratum light grids).
-    pub fn for_lattice_over(&self, (lo, hi): (Vec3A, Vec3A), res: u32) -> BlobMedium {
+    pub(crate) fn for_lattice_over(&self, (lo, hi): (Vec3A, Vec3A), res: u32) -> BlobMedium {
         let mut m = self.clone();
         let cell = (hi - lo).max_element() / res.max(1) as f32;
         m.params.billows = self.params.billows.coarsened(2.0 * cell);
