@@ -6,13 +6,11 @@
 //! `cargo test --release --lib -- --ignored --nocapture render::bench` (add `--features
 //! counters` for the work counters; docs/SPEED.md).
 
-use std::time::Instant;
-
 use glam::Vec3A;
 
 use crate::blobby::Blob;
 use crate::render::counters::{self, Counter};
-use crate::render::fixture::{settings, test_cloud};
+use crate::render::fixture::{settings, test_cloud, time};
 use crate::render::light::sun_depth::SunGrid;
 use crate::render::{
     BlobMedium, Film, LightGrid, Quality, RenderSettings, render_frame, render_medium,
@@ -115,12 +113,6 @@ fn print_work(s: &RenderSettings, blobs: &[Blob]) {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
-    let t = Instant::now();
-    let out = f();
-    (out, t.elapsed().as_secs_f64())
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The renderer tests' cloud and the settings that frame it, in one file for the two test
+//! The renderer tests' cloud, the settings that frame it and a timer, in one file for the two test
 //! binaries that measure it: the benchmark (a unit test, `src/render/bench.rs`, which needs the
 //! renderer's internals) and the integration tests (`tests/it/render.rs`, which include this
 //! file by path; its seeded hash is pinned on this very cloud). The names come from the
@@ -78,4 +78,11 @@ pub(crate) fn settings(width: u32, height: u32, quality: Quality) -> RenderSetti
         quality,
         base: None,
     }
+}
+
+/// `f`'s result and the wall-clock seconds it took.
+pub(crate) fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = std::time::Instant::now();
+    let out = f();
+    (out, t.elapsed().as_secs_f64())
 }

@@ -8,7 +8,6 @@ use crate::exr_support;
 
 use crate::builtin_scenes;
 use crate::look_support;
-use std::time::Instant;
 
 use glam::{DQuat, DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
@@ -24,7 +23,7 @@ use rand::{RngExt, SeedableRng};
 // library, `src/render/bench.rs`).
 #[path = "../../src/render/fixture.rs"]
 mod fixture;
-use fixture::{settings, test_cloud};
+use fixture::{settings, test_cloud, time};
 
 /// Exact chord of the ray `o + t d` (unit d) through the ball (c, r).
 fn chord(o: Vec3A, d: Vec3A, c: Vec3A, r: f32) -> f32 {
@@ -373,12 +372,6 @@ fn exr_reads_back_with_channels_and_values() {
     let png = image::open(dir.join("f.png")).unwrap();
     assert_eq!((png.width(), png.height()), (40, 24));
     std::fs::remove_dir_all(&dir).unwrap();
-}
-
-fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
-    let t = Instant::now();
-    let out = f();
-    (out, t.elapsed().as_secs_f64())
 }
 
 #[test]
