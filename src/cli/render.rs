@@ -170,6 +170,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 / report.rendered as f64;
             eprintln!("  {:<14} {per:>8.3} s", "per frame");
         }
+        // The work counters, in a `--features counters` build (speed work reads them).
+        if nephele::render::counters::ENABLED {
+            let counts = nephele::render::counters::take();
+            for (name, n) in nephele::render::counters::NAMES.iter().zip(counts) {
+                eprintln!("  {name:<32} {:>10.3} M", n as f64 / 1e6);
+            }
+        }
     }
     Ok(())
 }

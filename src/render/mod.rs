@@ -51,7 +51,9 @@ pub mod sampler;
 pub mod settings;
 
 pub use camera::{Camera, ray_ellipsoid};
-pub use integrator::frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
+pub use integrator::frame_renderer::{
+    FrameOptions, FrameRenderer, RenderReport, Reuse, render_reference,
+};
 pub use integrator::motion_blur::{BlurReport, Shutter, TimeSample};
 pub use integrator::{render_medium, render_medium_unshaded};
 pub use light::grid::LightGrid;
