@@ -170,6 +170,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 / report.rendered as f64;
             eprintln!("  {:<14} {per:>8.3} s", "per frame");
         }
+        // The work counters, in a `--features counters` build (speed work reads them).
+        for (name, n) in nephele::render::work_counts() {
+            eprintln!("  {name:<32} {:>10.3} M", n as f64 / 1e6);
+        }
     }
     Ok(())
 }

@@ -66,3 +66,32 @@ pub(crate) fn take() -> [u64; COUNTERS] {
         [0; COUNTERS]
     }
 }
+
+/// The work counts since the last call (or since the process started), by name, and reset them:
+/// what `nephele render --timings` prints in a `--features counters` build. Empty without the
+/// feature.
+pub fn work_counts() -> Vec<(&'static str, u64)> {
+    #[cfg(feature = "counters")]
+    {
+        const NAMES: [&str; COUNTERS] = [
+            "march samples",
+            "light-grid samples",
+            "hits visited",
+            "noise stacks",
+            "shaded samples",
+            "noise octaves",
+            "empty fine samples",
+            "fine samples beyond the billows",
+            "coarse samples",
+        ];
+        NAMES
+            .iter()
+            .zip(&COUNTS)
+            .map(|(&name, c)| (name, c.swap(0, std::sync::atomic::Ordering::Relaxed)))
+            .collect()
+    }
+    #[cfg(not(feature = "counters"))]
+    {
+        Vec::new()
+    }
+}

@@ -80,8 +80,11 @@ pub mod output;
 pub(crate) mod sampler;
 pub(crate) mod settings;
 
-// The front. Rendering a frame of blobs:
-pub use integrator::frame_renderer::{FrameOptions, FrameRenderer, RenderReport, Reuse};
+// The front. Rendering a frame of blobs (and the reference march that checks it):
+pub use counters::work_counts;
+pub use integrator::frame_renderer::{
+    FrameOptions, FrameRenderer, RenderReport, Reuse, render_reference,
+};
 pub use integrator::motion_blur::{BlurReport, Shutter, TimeSample};
 pub use output::cryptomatte::{IdMattes, Mattes};
 pub use output::film::{Film, Region};
