@@ -211,11 +211,10 @@ impl FrameRenderer {
     }
 }
 
-/// The reference the fast march is checked against: `blobs` rendered with `settings` through
-/// the same light grid, but marched with fine and coarse steps `divisor` times shorter and no
-/// step over what the density's bounds prove empty (`BlobMedium::set_clear_steps`). Slow: for
-/// tests and benchmarks (the accuracy bar is a frame within 2/255 of its reference at a quarter
-/// of the fine step in ≥ 99.9 % of pixels).
+/// The reference the march is checked against: `blobs` rendered with `settings` through the
+/// same light grid, but marched with fine and coarse steps `divisor` times shorter. Slow: for
+/// tests and speed work (a faster march must stay within 2/255 of the reference at a quarter of
+/// the fine step; the accuracy tests in `tests/it/render.rs`).
 pub fn render_reference(settings: &RenderSettings, blobs: &[Blob], divisor: f32) -> Frame {
     let medium = BlobMedium::new(settings, blobs);
     let grid = light_grid(settings, &medium, None, None);
@@ -223,7 +222,6 @@ pub fn render_reference(settings: &RenderSettings, blobs: &[Blob], divisor: f32)
     fine.quality.optical_step /= divisor;
     let mut reference = medium.clone();
     reference.set_step(medium.step() / divisor);
-    reference.set_clear_steps(false);
     render_medium(&fine, &reference, &grid, &BEAUTY)
 }
 

@@ -118,18 +118,10 @@ pub(crate) fn march<
                     counters::add(Counter::FineOutside, 1);
                 }
             }
-            // Where the sample is empty, the medium may know how far on it stays so (its
-            // bounds); never further than a coarse step, the coarse march's own reach.
-            let clear = if sigma <= 0.0 {
-                medium.clear_ahead(scratch).min(coarse)
-            } else {
-                0.0
-            };
-            let next = (s + len).max(t + clear);
             if !inside {
-                last_empty = t + clear;
-                empty_run += next - s;
-                s = next;
+                last_empty = t;
+                s += len;
+                empty_run += len;
                 if in_medium && empty_run >= coarse {
                     in_medium = false;
                     h = coarse;
@@ -151,7 +143,7 @@ pub(crate) fn march<
             }
             if sigma <= 0.0 {
                 counters::add(Counter::EmptyFine, 1);
-                s = next;
+                s += len;
                 continue;
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());

@@ -189,10 +189,6 @@ impl<M: Medium> Medium for Bounded<'_, M> {
         self.medium.sample(s, t, x)
     }
 
-    fn clear_ahead(&self, s: &Self::Scratch) -> f32 {
-        self.medium.clear_ahead(s)
-    }
-
     fn label(&self, s: &mut Self::Scratch, t: f32) -> u32 {
         self.medium.label(s, t)
     }

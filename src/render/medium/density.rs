@@ -75,56 +75,6 @@ pub(crate) struct Hit {
 /// their width while the body's billows cut in freely.
 pub(crate) const MAX_CUT: f32 = 0.35;
 
-/// A bound of `|∇(d + lift)|` for the signed depth `d` and the lift's dependence on the
-/// supports' reach, without the billows' own slope. `d` is a first-order distance (slope 1 at
-/// the surface); the reach `max_i (1 − |q_i|²)·r_i/2` changes by at most `|q| ≤ 1` a unit. `d`'s
-/// slope has no hard bound where the field's gradient nearly vanishes (between blobs), so 2 is
-/// taken for it and every clear distance is capped by the caller's coarse step (the reach of
-/// the coarse march's own assumption).
-pub(crate) const DEPTH_SLOPE: f32 = 3.0;
-
-/// What one density sample found: the extinction, whether the sample lies where the billows
-/// may hold density, and how far along the ray (world units) the density is provably 0.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct DensitySample {
-    /// `σ_t` (before the cumulus base).
-    pub(crate) sigma: f32,
-    /// False only where no billow can reach.
-    pub(crate) inside: bool,
-    /// Distance ahead (and behind) of the sample within which the density is 0 by the bounds
-    /// of the depth and the billows' slope (0 where the sample has density).
-    pub(crate) clear: f32,
-}
-
-impl DensitySample {
-    const EMPTY: DensitySample = DensitySample {
-        sigma: 0.0,
-        inside: false,
-        clear: 0.0,
-    };
-
-    /// An empty sample whose surface value `d + lift` is `value < 0`, changing by at most
-    /// `slope` a world unit.
-    #[inline]
-    fn empty(inside: bool, value: f32, slope: f32) -> DensitySample {
-        DensitySample {
-            sigma: 0.0,
-            inside,
-            clear: (-value / slope).max(0.0),
-        }
-    }
-
-    /// A sample with density `sigma` (no clear distance).
-    #[inline]
-    fn full(sigma: f32, inside: bool) -> DensitySample {
-        DensitySample {
-            sigma,
-            inside,
-            clear: 0.0,
-        }
-    }
-}
-
 /// Density parameters, already in world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct DensityParams {
@@ -153,8 +103,8 @@ impl DensityParams {
         d: f32,
         feature: f32,
         reach: f32,
-        displacement: impl FnOnce(&[f32; MAX_OCTAVES], usize, &Settle) -> Result<(f32, f32), Settled>,
-    ) -> DensitySample {
+        displacement: impl FnOnce(&[f32; MAX_OCTAVES], usize, &Settle) -> Result<f32, f32>,
+    ) -> (f32, bool) {
         let (depths, n, total) = self.billows.depths(feature);
         let settle = Settle {
             d,
@@ -167,45 +117,20 @@ impl DensityParams {
         };
         // The lifts of the largest push and the deepest crease bound every lift (the soft
         // limits are increasing): beyond them no billow can reach, and below them no crease.
-        let top = d + settle.lift(settle.hi_total);
-        if top <= 0.0 {
-            return DensitySample::empty(false, top, DEPTH_SLOPE);
+        if d + settle.lift(settle.hi_total) <= 0.0 {
+            return (0.0, false);
         }
         if d + settle.lift(settle.lo_total) >= self.edge {
-            return DensitySample::full(self.sigma, true);
+            return (self.sigma, true);
         }
         if n == 0 {
-            return if d > 0.0 {
-                DensitySample::full(self.sigma * ramp(d, self.edge), true)
-            } else {
-                DensitySample::empty(true, d, DEPTH_SLOPE)
-            };
+            return (self.sigma * ramp(d, self.edge), true);
         }
         match displacement(&depths, n, &settle) {
-            Ok((push, slope)) => {
-                let v = d + settle.lift(push);
-                if v > 0.0 {
-                    DensitySample::full(self.sigma * ramp(v, self.edge), true)
-                } else {
-                    DensitySample::empty(true, v, DEPTH_SLOPE + slope)
-                }
-            }
-            Err(Settled::Empty { value, slope }) => {
-                DensitySample::empty(true, value, DEPTH_SLOPE + slope)
-            }
-            Err(Settled::Full(sigma)) => DensitySample::full(sigma, true),
+            Ok(push) => (self.sigma * ramp(d + settle.lift(push), self.edge), true),
+            Err(sigma) => (sigma, true),
         }
     }
-}
-
-/// How the octaves settled a sample before the last ([`Settle::check`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum Settled {
-    /// Empty whatever the octaves left: the surface value `d + lift(hi) ≤ 0` and the slope
-    /// bound of the octaves evaluated.
-    Empty { value: f32, slope: f32 },
-    /// The ramp's far clamp: full density.
-    Full(f32),
 }
 
 /// What decides a sample's density once its displacement is known to lie in a range: the
@@ -237,21 +162,15 @@ impl Settle {
 
     /// The density once the displacement lies in `[lo, hi]`, if the octaves left cannot move
     /// the ramp off a clamp (then the answer is exact); `None` otherwise.
-    ///
-    /// `slope` bounds the world gradient of the octaves evaluated so far; an empty answer
-    /// carries it with the surface value, for the clear distance.
     #[inline]
-    pub(crate) fn check(&self, lo: f32, hi: f32, slope: f32) -> Option<Settled> {
+    pub(crate) fn check(&self, lo: f32, hi: f32) -> Option<f32> {
         // A lift is ≥ 0 for a push > 0 and ≤ 0 for a push ≤ 0, so the signs alone often
         // decide (the same answers as the lifts, without their divisions).
-        if !(self.d > 0.0 && hi > 0.0) {
-            let value = self.d + self.lift(hi);
-            if value <= 0.0 {
-                return Some(Settled::Empty { value, slope });
-            }
-        }
-        if !(self.d < self.edge && lo <= 0.0) && self.d + self.lift(lo) >= self.edge {
-            Some(Settled::Full(self.sigma))
+        let empty = !(self.d > 0.0 && hi > 0.0) && self.d + self.lift(hi) <= 0.0;
+        if empty {
+            Some(0.0)
+        } else if !(self.d < self.edge && lo <= 0.0) && self.d + self.lift(lo) >= self.edge {
+            Some(self.sigma)
         } else {
             None
         }
@@ -281,12 +200,12 @@ fn ramp(v: f32, w: f32) -> f32 {
     (v / w).clamp(0.0, 1.0)
 }
 
-/// The density at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`),
+/// `(σ_t, inside)` at parameter `t` of the ray whose `hits` were gathered (sorted by `t0`),
 /// summed over the hits `order` names (indices into `hits`, increasing: all of them, or those
-/// spanning `t`); `inside` is true where the billows may hold density, and an empty sample
-/// says how far the density stays 0 ([`DensitySample`]).
+/// spanning `t`); `inside` is true within the iso-surface (`g > 1`), where erosion may still
+/// give 0.
 #[inline]
-pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) -> DensitySample {
+pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) -> (f32, bool) {
     let mut g = 0.0;
     let mut act = [(0.0f32, 0u32); MAX_ACTIVE];
     let mut n = 0;
@@ -334,7 +253,7 @@ pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
     }
     let g = g * p.inv_threshold;
     if !(g > 0.0 && g.is_finite()) {
-        return DensitySample::EMPTY;
+        return (0.0, false);
     }
     // Signed depth below the iso-surface: the first-order distance of `√g`'s level 1,
     // `(√g − 1)/|∇√g| = 2(g − √g)/|∇g|` (`grad` is ∇G / −4). `√g` of one blob is linear in
@@ -345,12 +264,11 @@ pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
     // have, the answer is [`DensityParams::extinction`]'s first two (its bounds, from the
     // part's own total ≤ `most`, are no wider): no feature size, no octave depths needed.
     let most = p.billows.max_total();
-    let top = d + soft_limit((1.0 - CREASE) * most, reach);
-    if top <= 0.0 {
-        return DensitySample::empty(false, top, DEPTH_SLOPE);
+    if d + soft_limit((1.0 - CREASE) * most, reach) <= 0.0 {
+        return (0.0, false);
     }
     if d - CREASE * most >= p.edge {
-        return DensitySample::full(p.sigma, true);
+        return (p.sigma, true);
     }
     let (mut fsum, mut wsum) = (0.0, 0.0);
     for &(f, k) in &act[..n] {
@@ -384,7 +302,7 @@ pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
             1.0 / w2.sqrt(),
             depths,
             octaves,
-            |lo, hi, rise| settle.check(lo, hi, rise),
+            |lo, hi| settle.check(lo, hi),
         )
     })
 }
@@ -406,43 +324,38 @@ mod tests {
         let octave =
             |k: i32| 0.25 * 0.2 * 2.03f32.powf(-(k as f32) * crate::render::medium::noise::HURST);
         assert!((total - (0..4).map(octave).sum::<f32>()).abs() < 1e-5);
-        let never =
-            |_: &[f32; 8], _: usize, _: &Settle| -> Result<(f32, f32), Settled> { unreachable!() };
-        let si = |s: DensitySample| (s.sigma, s.inside);
+        let never = |_: &[f32; 8], _: usize, _: &Settle| -> Result<f32, f32> { unreachable!() };
         // Beyond the highest billow top: nothing, and the march may skip.
         assert_eq!(
-            si(p.extinction(-(1.0 - CREASE) * total - 1e-3, f, 1.0, never)),
+            p.extinction(-(1.0 - CREASE) * total - 1e-3, f, 1.0, never),
             (0.0, false)
         );
         // Deeper than the deepest crease plus the edge: full density.
         assert_eq!(
-            si(p.extinction(CREASE * total + 0.011, f, 1.0, never)),
+            p.extinction(CREASE * total + 0.011, f, 1.0, never),
             (10.0, true)
         );
         // Between: the surface is pushed out by a billow top and cut in by a crease.
         assert_eq!(
-            si(p.extinction(-0.015, f, 1e9, |_, _, _| Ok((0.03, 0.0)))),
+            p.extinction(-0.015, f, 1e9, |_, _, _| Ok(0.03)),
             (10.0, true)
         );
-        assert_eq!(
-            si(p.extinction(0.02, f, 1.0, |_, _, _| Ok((-0.03, 0.0)))),
-            (0.0, true)
-        );
-        let (s, inside) = si(p.extinction(-0.02, f, 1e9, |_, _, _| Ok((0.025, 0.0))));
+        assert_eq!(p.extinction(0.02, f, 1.0, |_, _, _| Ok(-0.03)), (0.0, true));
+        let (s, inside) = p.extinction(-0.02, f, 1e9, |_, _, _| Ok(0.025));
         assert!(inside && (s - 5.0).abs() < 1e-3, "{s}");
         // Near the end of the supports a billow top is rounded off: a push of 0.02 where the
         // supports reach 0.02 further lifts the surface by 0.01 only.
-        let (s, _) = si(p.extinction(-0.005, f, 0.02, |_, _, _| Ok((0.02, 0.0))));
+        let (s, _) = p.extinction(-0.005, f, 0.02, |_, _, _| Ok(0.02));
         assert!((s - 5.0).abs() < 1e-3, "{s}");
         // So no billow reaches further than the lift of the largest push, `h·r/(h + r)` with
         // `h = (1 − CREASE)·total` (0.0119 here, not min(h, r) = 0.02): decided without
         // octaves, and the march may skip ...
         let top = (1.0 - CREASE) * total * 0.02 / ((1.0 - CREASE) * total + 0.02);
         assert!((top - 0.0119).abs() < 1e-4, "{top}");
-        assert_eq!(si(p.extinction(-top - 1e-4, f, 0.02, never)), (0.0, false));
+        assert_eq!(p.extinction(-top - 1e-4, f, 0.02, never), (0.0, false));
         // ... while just inside it the octaves decide.
         assert_eq!(
-            si(p.extinction(-top + 1e-4, f, 0.02, |_, _, _| Ok((0.0, 0.0)))),
+            p.extinction(-top + 1e-4, f, 0.02, |_, _, _| Ok(0.0)),
             (0.0, true)
         );
         // Likewise no crease cuts deeper than the lift of the deepest, `c·m/(c + m)` with
@@ -452,16 +365,16 @@ mod tests {
         let deepest = c * m / (c + m);
         assert!((deepest - 0.0573).abs() < 1e-4, "{deepest}");
         assert_eq!(
-            si(p.extinction(deepest + 0.01 + 1e-4, f, 1.0, never)),
+            p.extinction(deepest + 0.01 + 1e-4, f, 1.0, never),
             (10.0, true)
         );
-        let (s, _) = si(p.extinction(deepest + 0.01 - 1e-3, f, 1.0, |_, _, _| Ok((-1.0, 0.0))));
+        let (s, _) = p.extinction(deepest + 0.01 - 1e-3, f, 1.0, |_, _, _| Ok(-1.0));
         assert!(s < 10.0, "{s}");
         // And no density can lie beyond the reach.
-        assert_eq!(si(p.extinction(-0.031, f, 0.03, never)), (0.0, false));
+        assert_eq!(p.extinction(-0.031, f, 0.03, never), (0.0, false));
         // A part smaller than the finest wavelength gets no billows: the plain edge ramp.
-        assert_eq!(si(p.extinction(0.005, 0.0, 1.0, never)), (5.0, true));
-        assert_eq!(si(p.extinction(-0.001, 0.0, 1.0, never)), (0.0, false));
+        assert_eq!(p.extinction(0.005, 0.0, 1.0, never), (5.0, true));
+        assert_eq!(p.extinction(-0.001, 0.0, 1.0, never), (0.0, false));
     }
 
     #[test]

@@ -65,14 +65,6 @@ pub trait Medium: Sync {
         (sigma, sigma > 0.0)
     }
 
-    /// After [`Medium::sample`] found no extinction: a distance along the ray, from the sample,
-    /// over which the extinction is surely 0 by the medium's own bounds (the integrator may
-    /// step over it). Default: 0 (nothing known).
-    #[inline]
-    fn clear_ahead(&self, _scratch: &Self::Scratch) -> f32 {
-        0.0
-    }
-
     /// Which piece of the medium dominates the extinction at `t`, the last `t` sampled (for the
     /// ID mattes, [`crate::render::output::cryptomatte`]): for the blob cloud the index, in the frame's blob
     /// list, of the blob whose field term is largest there; [`crate::render::output::cryptomatte::NO_MATTE`]

@@ -23,8 +23,6 @@ pub struct BlobScratch {
     pub(super) active: ActiveHits,
     /// What the gather keeps between rays (see [`GatherBuffers`]).
     pub(super) gather: GatherBuffers,
-    /// The last [`Medium::sample`]'s clear distance (see [`Medium::clear_ahead`]).
-    pub(super) clear: f32,
 }
 
 /// What [`BlobMedium::gather`] keeps between a thread's rays.
@@ -201,17 +199,17 @@ impl BlobMedium {
 
     /// `(σ_t, inside)` under the cumulus base, if any (the density thins out below it).
     #[inline]
-    pub(super) fn with_base(&self, sigma: f32, x: Vec3A) -> f32 {
+    pub(super) fn with_base(&self, (sigma, inside): (f32, bool), x: Vec3A) -> (f32, bool) {
         match &self.base {
-            Some(b) if sigma > 0.0 => sigma * b.factor(x.y),
-            _ => sigma,
+            Some(b) if sigma > 0.0 => (sigma * b.factor(x.y), inside),
+            _ => (sigma, inside),
         }
     }
 
     /// `σ_t` at parameter `t` of the ray whose `hits` were gathered (no base).
     #[cfg(test)]
     pub(super) fn density(&self, hits: &[Hit], t: f32) -> f32 {
-        density(&self.params, hits, &all_of(hits), t).sigma
+        density(&self.params, hits, &all_of(hits), t).0
     }
 }
 
@@ -263,7 +261,6 @@ impl Medium for BlobMedium {
             active,
             dt,
             gather,
-            clear: _,
         } = s;
         self.gather(tile, ray, *dt, gather, hits, intervals);
         active.reset();
@@ -281,22 +278,15 @@ impl Medium for BlobMedium {
     fn extinction(&self, s: &mut BlobScratch, t: f32, x: Vec3A) -> f32 {
         let active = s.active.at(&s.hits, t);
         count_sample(Counter::LightSamples, active);
-        self.with_base(density(&self.params, &s.hits, active, t).sigma, x)
+        self.with_base(density(&self.params, &s.hits, active, t), x)
+            .0
     }
 
     #[inline]
     fn sample(&self, s: &mut BlobScratch, t: f32, x: Vec3A) -> (f32, bool) {
         let active = s.active.at(&s.hits, t);
         count_sample(Counter::MarchSamples, active);
-        let sample = density(&self.params, &s.hits, active, t);
-        // The cumulus base only thins density out: where it is 0 it stays 0.
-        s.clear = if self.clear_steps { sample.clear } else { 0.0 };
-        (self.with_base(sample.sigma, x), sample.inside)
-    }
-
-    #[inline]
-    fn clear_ahead(&self, s: &Self::Scratch) -> f32 {
-        s.clear
+        self.with_base(density(&self.params, &s.hits, active, t), x)
     }
 
     /// The blob with the largest field term `B²(1 − |q|²)²` among those the sample at `t` is in

@@ -72,9 +72,6 @@ pub struct BlobMedium {
     hi: Vec<Vec3A>,
     params: DensityParams,
     step: f32,
-    /// Whether samples report their clear distance ([`crate::render::Medium::clear_ahead`]); off only for
-    /// the reference march the tests compare with.
-    clear_steps: bool,
     /// The cumulus base, if any.
     base: Option<BasePlane>,
     /// Velocity of each live blob's centre (world units per second); empty for a still cloud.
@@ -109,12 +106,6 @@ impl BlobMedium {
     /// Use `step` as the coarse march step (all time samples of a frame march alike).
     pub(crate) fn set_step(&mut self, step: f32) {
         self.step = step;
-    }
-
-    /// Let the march step over what the density's bounds prove empty (the default), or not
-    /// (the reference march of the accuracy tests: every fine step sampled).
-    pub fn set_clear_steps(&mut self, on: bool) {
-        self.clear_steps = on;
     }
 
     fn build(
@@ -154,7 +145,6 @@ impl BlobMedium {
             },
             base: settings.base,
             step: 0.0,
-            clear_steps: true,
             velocity: Vec::new(),
             sweep: 0.0,
         };
