@@ -720,6 +720,34 @@ fn share_beyond(a: &image::RgbImage, b: &image::RgbImage, levels: u8) -> (f64, u
     (beyond as f64 / (a.width() * a.height()) as f64, worst)
 }
 
+/// The frame of `blobs` and its reference at a quarter of the steps, tone-mapped, and the
+/// share of pixels beyond 2/255 with the largest difference (printed).
+struct AgainstReference {
+    frame: nephele::render::Frame,
+    fast: image::RgbImage,
+    reference: image::RgbImage,
+    share: f64,
+}
+
+fn against_reference(s: &RenderSettings, blobs: &[Blob], what: &str) -> AgainstReference {
+    let frame = render_frame(s, blobs);
+    let fast = output::tonemapped(&frame, s);
+    let reference = output::tonemapped(&nephele::render::render_reference(s, blobs, 4.0), s);
+    let (share, worst) = share_beyond(&fast, &reference, 2);
+    eprintln!(
+        "{what} {}x{}: beyond 2/255 {:.4} % of pixels, largest difference {worst}",
+        s.width,
+        s.height,
+        share * 100.0
+    );
+    AgainstReference {
+        frame,
+        fast,
+        reference,
+        share,
+    }
+}
+
 /// The march (fine steps in the cloud, coarse steps over the supports' empty parts) against a
 /// reference march at a quarter of both steps: within 2/255 in ≥ 99.9 % of pixels, on a
 /// billowed cloud lit from the side (thin billow tops in the sun, so a skipped billow shows).
@@ -730,30 +758,20 @@ fn march_matches_a_quarter_step_reference() {
     let mut s = settings(320, 180, Quality::final_frame());
     s.sun.direction = Vec3::new(-0.8, 0.35, 0.3).normalize();
     assert!(s.cloud.noise.amplitude > 0.0 && s.cloud.noise.octaves > 2);
-    let fast = render_frame(&s, &blobs);
-    let reference = nephele::render::render_reference(&s, &blobs, 4.0);
-    let covered = fast.alpha.iter().filter(|&&a| a > 0.5).count();
+    let checked = against_reference(&s, &blobs, "test cloud");
+    let covered = checked.frame.alpha.iter().filter(|&&a| a > 0.5).count();
     assert!(covered > 5_000, "the cloud covers {covered} pixels");
-    let (a, b) = (
-        output::tonemapped(&fast, &s),
-        output::tonemapped(&reference, &s),
-    );
-    let (share, worst) = share_beyond(&a, &b, 2);
-    eprintln!(
-        "beyond 2/255: {:.4} % of pixels, largest difference {worst}",
-        share * 100.0
-    );
     assert!(
-        share <= 1e-3,
+        checked.share <= 1e-3,
         "{:.4} % of pixels differ by more than 2/255",
-        share * 100.0
+        checked.share * 100.0
     );
     // The bar can fail: steps three times as long (fine and coarse) miss it.
     let mut coarse = s.clone();
     coarse.quality.optical_step *= 3.0;
     coarse.quality.step_scale *= 3.0;
     let rough = output::tonemapped(&render_frame(&coarse, &blobs), &s);
-    let (rough_share, _) = share_beyond(&rough, &b, 2);
+    let (rough_share, _) = share_beyond(&rough, &checked.reference, 2);
     eprintln!(
         "steps ×3: beyond 2/255 {:.4} % of pixels",
         rough_share * 100.0
@@ -791,22 +809,13 @@ fn scene_frame_matches_its_reference() {
     let shot = Shot::open(scene, &options).unwrap();
     let k = shot.index(frame);
     let (s, blobs) = (shot.settings(k).unwrap(), shot.blobs(k).unwrap());
-    let fast = render_frame(&s, &blobs);
-    let reference = nephele::render::render_reference(&s, &blobs, 4.0);
-    let (a, b) = (
-        output::tonemapped(&fast, &s),
-        output::tonemapped(&reference, &s),
-    );
-    let (share, worst) = share_beyond(&a, &b, 2);
-    eprintln!(
-        "{path} frame {frame} {}x{}: beyond 2/255 {:.4} % of pixels, largest difference {worst}",
-        s.width,
-        s.height,
-        share * 100.0
-    );
+    let checked = against_reference(&s, &blobs, &format!("{path} frame {frame}"));
     if let Ok(out) = std::env::var("NEPHELE_ACCURACY_PNG") {
-        a.save(format!("{out}-fast.png")).unwrap();
-        b.save(format!("{out}-reference.png")).unwrap();
+        checked.fast.save(format!("{out}-fast.png")).unwrap();
+        checked
+            .reference
+            .save(format!("{out}-reference.png"))
+            .unwrap();
     }
-    assert!(share <= 1e-3);
+    assert!(checked.share <= 1e-3);
 }
