@@ -14,7 +14,7 @@
 //! offsets, so a surface vertex is identified by (grid point, direction) and stored in flat
 //! per-plane index arrays: one vertex per crossed edge, shared by every face that uses it.
 //!
-//! The grid is swept in slabs of [`SLAB`] cell layers, in parallel (rayon); each slab keeps only
+//! The grid is swept in slabs of `SLAB` cell layers, in parallel (rayon); each slab keeps only
 //! two planes of field values. A slab re-evaluates its top plane, which is also the next slab's
 //! bottom plane; the two copies of that plane's in-plane vertices are identical (same inputs,
 //! same arithmetic) and the merge keeps the upper slab's copy. The slab size does not depend on
