@@ -62,8 +62,8 @@ impl FullProblem<'_> {
 impl Budget<'_> {
     /// Run up to `cfg.swap_rounds` swap rounds of `cfg.swap_blobs` blobs each (see the module
     /// docs). A dropped blob's candidate stays used, so that a round never undoes the last.
-    /// Stops at the first round that does not lower the problem's cost (`FullProblem::cost`), restoring the blobs
-    /// from before it.
+    /// Stops at the first round that does not lower the problem's cost (`FullProblem::cost`),
+    /// restoring the blobs from before it.
     pub fn swap(&self, problem: &FullProblem, placed: &mut Placement) {
         let cfg = problem.cfg;
         if cfg.swap_blobs == 0 || placed.blobs.len() <= cfg.swap_blobs {
