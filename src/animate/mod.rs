@@ -249,6 +249,14 @@ pub fn plan_with_source<S>(
 }
 
 impl Plan {
+    /// The diffusion's plan, when the animation is one.
+    pub fn diffusion(&self) -> Option<&DiffusionPlan> {
+        match self {
+            Plan::Diffusion(p) => Some(p),
+            _ => None,
+        }
+    }
+
     /// The blobs of frame `k` (0-based; frames past the end give the target).
     pub fn frame(&self, k: usize) -> Vec<Blob> {
         match self {

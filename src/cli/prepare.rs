@@ -42,6 +42,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         TargetOrigin::Cached(p) => eprintln!("target already cached in {}", p.display()),
         TargetOrigin::ModelFile(p) => eprintln!("target is the model file {}", p.display()),
     }
+    // A diffusion's blend path, made once here for every task of the farm (they read it).
+    if let Some(d) = shot.prepared()?.plan.diffusion() {
+        d.make_blend_path();
+    }
+    shot.cache_blend_path()?;
     let removed = shot.remove_stale_temps()?;
     if removed > 0 {
         eprintln!("removed {removed} temporary files left by killed renders");

@@ -10,6 +10,7 @@
 //! so a scene can sit beside its models; the output folder resolves against the current
 //! directory, so renders land in the repository's `renders/` when run from its root.
 
+pub(crate) mod blend_cache;
 pub mod camera;
 pub mod canonical;
 pub mod chunk;

@@ -211,6 +211,8 @@ impl Shot {
             super::stats::write_csv(&path, &stats)?;
             report.stats = Some(path);
         }
+        // The blend path this run made (a frame inside a diffusion's blend), for the next.
+        self.cache_blend_path()?;
         report.timings = timings;
         Ok(report)
     }

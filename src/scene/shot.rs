@@ -239,7 +239,18 @@ impl Shot {
         }
         let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
         let prepared = plan(&self.scene, model, origin)?;
+        // The diffusion's blend path, if another process made it for this very plan.
+        super::blend_cache::load(&self.cache_dir, &prepared.plan);
         Ok(self.prepared.get_or_init(|| prepared))
+    }
+
+    /// Leave the diffusion's blend path in the cache folder for the next process, when this
+    /// one has made it (nothing for other animations, or when it is cached already).
+    pub fn cache_blend_path(&self) -> Result<(), SceneError> {
+        match self.prepared.get() {
+            Some(p) => super::blend_cache::store(&self.cache_dir, &p.plan),
+            None => Ok(()),
+        }
     }
 
     /// Where the target came from, once it is loaded.

@@ -125,6 +125,48 @@ fn support_box(blobs: &[Blob], members: &[usize]) -> Aabb {
         .fold(Aabb::EMPTY, |b, &i| b.union(blobs[i].support_bounds()))
 }
 
+/// The blend path a plan made, handed to a fresh plan of the same key, gives every frame the
+/// same bits; the key follows the blobs (one blob's `B` changed: another key) and bad knots are
+/// refused.
+#[test]
+fn diffusion_blend_path_travels_between_plans_bit_for_bit() {
+    let model = shell_model(40);
+    let made = diffusion(&model);
+    let key = made
+        .blend_key()
+        .expect("the default diffusion blends by volume");
+    assert_eq!(made.blend_knots(), None, "made only on need");
+    made.make_blend_path();
+    let knots = made.blend_knots().expect("made");
+    assert!(knots.len() >= 2, "{knots:?}");
+    let taken = diffusion(&model);
+    assert_eq!(taken.blend_key(), Some(key));
+    assert!(
+        !taken.use_blend_knots(&[[0.5, 0.5, 0.5]]),
+        "one knot is no path"
+    );
+    assert!(
+        !taken.use_blend_knots(&[[0.0, 0.0, 0.0], [1.0, 1.5, 1.0]]),
+        "outside [0, 1]"
+    );
+    assert!(
+        !taken.use_blend_knots(&[[0.6, 0.0, 0.0], [0.4, 1.0, 1.0]]),
+        "u decreasing"
+    );
+    assert!(taken.use_blend_knots(&knots));
+    assert!(!taken.use_blend_knots(&knots), "a path is taken once");
+    for k in 0..timeline().frames as usize {
+        let (a, b) = (made.frame(k), taken.frame(k));
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| bits(x) == bits(y)),
+            "frame {k}"
+        );
+    }
+    let mut other = model.clone();
+    other.blobs[7].b *= 1.01;
+    assert_ne!(diffusion(&other).blend_key(), Some(key));
+}
+
 #[test]
 fn aggregation_clusters_start_clear_of_their_place() {
     let model = shell_model(60);

@@ -448,6 +448,52 @@ fn run_render(scene: &Path, out: &Path, extra: &[&str]) -> String {
     err
 }
 
+/// A diffusion's blend path is left beside the target by the render that made it and read by
+/// the next; a damaged cache file is ignored. The frames are the same bits every way.
+#[test]
+fn the_blend_path_cache_changes_no_frame() {
+    let (dir, path) = tiny_scene("blend-cache", "Diffusion(())");
+    let out = dir.join("out");
+    let frames = |out: &std::path::Path| -> Vec<Vec<u8>> {
+        (1..=12)
+            .map(|f| std::fs::read(out.join(format!("tiny_{f:04}.png"))).unwrap())
+            .collect()
+    };
+    let cached = || -> Vec<std::path::PathBuf> {
+        std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| {
+                p.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("blend-")
+            })
+            .collect()
+    };
+    run_render(&path, &out, &[]);
+    let made = frames(&out);
+    let cache = cached();
+    assert_eq!(cache.len(), 1, "one blend path cached: {cache:?}");
+    let knots: Vec<[f64; 3]> = ron::from_str(&std::fs::read_to_string(&cache[0]).unwrap()).unwrap();
+    assert!(knots.len() >= 2 && knots[0] == [0.0; 3], "{knots:?}");
+    // Read back from the cache.
+    run_render(&path, &out, &["--force"]);
+    assert_eq!(frames(&out), made, "with the cached path");
+    // A damaged cache is ignored, and replaced.
+    std::fs::write(&cache[0], "[(0.0, 0.0").unwrap();
+    run_render(&path, &out, &["--force"]);
+    assert_eq!(frames(&out), made, "with a damaged cache file");
+    let repaired: Vec<[f64; 3]> =
+        ron::from_str(&std::fs::read_to_string(&cache[0]).unwrap()).unwrap();
+    assert_eq!(repaired, knots);
+    // No cache: made again, and cached again.
+    std::fs::remove_file(&cache[0]).unwrap();
+    run_render(&path, &out, &["--force"]);
+    assert_eq!(frames(&out), made, "made anew");
+    assert_eq!(cached().len(), 1);
+}
+
 #[test]
 fn cli_resumes_and_force_rerenders() {
     let (dir, path) = tiny_scene("resume", "Diffusion(())");

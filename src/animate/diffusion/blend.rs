@@ -80,6 +80,30 @@ impl BlendPath {
         BlendPath { knots }
     }
 
+    /// The knots as `[u, detail, fitted]` (what [`BlendPath::from_knots`] takes back).
+    pub fn knots(&self) -> Vec<[f64; 3]> {
+        self.knots
+            .iter()
+            .map(|k| [k.u, k.detail, k.fitted])
+            .collect()
+    }
+
+    /// A path from knots `[u, detail, fitted]`, if they are one: finite, in `[0, 1]`, `u`
+    /// non-decreasing (none, or at least two). `None` otherwise.
+    pub fn from_knots(knots: &[[f64; 3]]) -> Option<BlendPath> {
+        let valid = knots.len() != 1
+            && knots
+                .iter()
+                .all(|k| k.iter().all(|v| (0.0..=1.0).contains(v)))
+            && knots.windows(2).all(|w| w[0][0] <= w[1][0]);
+        valid.then(|| BlendPath {
+            knots: knots
+                .iter()
+                .map(|&[u, detail, fitted]| BlendKnot { u, detail, fitted })
+                .collect(),
+        })
+    }
+
     /// `(detail, fitted)` at eased blend time `u` (clamped to `[0, 1]`).
     pub fn at(&self, u: f64) -> (f64, f64) {
         let u = u.clamp(0.0, 1.0);
