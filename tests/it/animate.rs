@@ -155,7 +155,7 @@ fn diffusion_blend_path_travels_between_plans_bit_for_bit() {
     );
     assert!(taken.use_blend_knots(&knots));
     assert!(!taken.use_blend_knots(&knots), "a path is taken once");
-    for k in 0..timeline().frames as usize {
+    for k in 0..timeline().frames {
         let (a, b) = (made.frame(k), taken.frame(k));
         assert!(
             a.iter().zip(&b).all(|(x, y)| bits(x) == bits(y)),
