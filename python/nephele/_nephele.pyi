@@ -1,9 +1,12 @@
-"""Type stubs of the extension module `nephele._nephele` (re-exported by `nephele`)."""
+"""Type stubs of the extension module `nephele._nephele` (re-exported by `nephele`).
+
+The TypedDicts (`Layers`, `Mattes`, `ProgressReport`, `ShotReport`) exist for type checkers
+only: at run time these are plain dicts (import them under `typing.TYPE_CHECKING`)."""
 
 import os
 import sys
 from typing import (
-    Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union,
+    Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union, final,
 )
 
 if sys.version_info >= (3, 11):
@@ -34,6 +37,7 @@ class ModelError(NepheleError): ...
 
 _Bounds = Tuple[Tuple[float, float, float], Tuple[float, float, float]]
 
+@final
 class Model:
     """A fitted blob model."""
     COLUMNS: List[str]
@@ -79,6 +83,7 @@ def fit(
     ``"load"``, ``"winding"``, ``"samples"``, ``"grow"``, ``"select"``, ``"optimise"``,
     ``"done"`` as each starts (an exception it raises is raised once the fit is over)."""
 
+@final
 class Scene:
     @staticmethod
     def load(path: _Path) -> "Scene": ...
@@ -154,6 +159,7 @@ class ShotReport(TypedDict):
 
 _Frames = Union[None, str, int, Sequence[int]]
 
+@final
 class Shot:
     @property
     def frames(self) -> List[int]: ...
@@ -186,6 +192,7 @@ class Shot:
         self, progress: Optional[Callable[[ProgressReport], Any]] = None
     ) -> ShotReport: ...
 
+@final
 class FrameIter(Iterator[Tuple[int, Any]]):
     """``Shot.frames_iter``'s iterator: each ``next()`` renders the next frame."""
     def __iter__(self) -> "FrameIter": ...
