@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
-# CI for the Python package (python/): a venv under target/py-venv with maturin, pytest, numpy
+# CI for the Python package (python/): a venv under <target>/py-venv with maturin, pytest, numpy
 # and OpenEXR (an EXR reader we did not write), the nephele CLI and the abi3 wheel built in
-# release into the repository's target/, the wheel installed, then pytest.
+# release into <target> ($CARGO_TARGET_DIR if set, else the repository's target/), the wheel
+# installed, then pytest.
 # Skips (exit 0, said plainly) only when the Python package index cannot be reached.
-# Usage: bash python/ci.sh   (from anywhere; needs cargo and python3 >= 3.9 with venv)
+# Usage: bash python/ci.sh [pytest args]   (from anywhere; needs cargo and python3 >= 3.9 with venv)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 PY=${PYTHON:-python3}
-VENV=$ROOT/target/py-venv
-export CARGO_TARGET_DIR=$ROOT/target
+export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$ROOT/target}
+TARGET=$CARGO_TARGET_DIR
+VENV=$TARGET/py-venv
 start=$(date +%s)
 
 if ! "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 9))'; then
@@ -24,7 +26,7 @@ fi
 if ! "$VENV/bin/python" -c 'import maturin, pytest, numpy, OpenEXR' 2>/dev/null; then
   if ! "$VENV/bin/pip" install -q --disable-pip-version-check "maturin>=1.5,<2" pytest numpy "OpenEXR>=3.2"; then
     # Tell an unreachable index (skip) from a real install failure (fail).
-    if ! "$VENV/bin/pip" download -q --no-deps --disable-pip-version-check -d "$ROOT/target/py-probe" pip >/dev/null 2>&1; then
+    if ! "$VENV/bin/pip" download -q --no-deps --disable-pip-version-check -d "$TARGET/py-probe" pip >/dev/null 2>&1; then
       echo "SKIPPED python/ci.sh: the Python package index is unreachable, so maturin, pytest, numpy and OpenEXR cannot be installed; the Python bindings were not tested"
       exit 0
     fi
@@ -35,13 +37,13 @@ fi
 
 echo "== building the nephele CLI (release) and the abi3 wheel"
 cargo build --release --quiet
-rm -f "$ROOT"/target/wheels/nephele-*.whl
-"$VENV/bin/maturin" build --release --quiet -m python/Cargo.toml -o "$ROOT/target/wheels"
-wheel=$(ls "$ROOT"/target/wheels/nephele-*-abi3-*.whl)
+rm -f "$TARGET"/wheels/nephele-*.whl
+"$VENV/bin/maturin" build --release --quiet -m python/Cargo.toml -o "$TARGET/wheels"
+wheel=$(ls "$TARGET"/wheels/nephele-*-abi3-*.whl)
 "$VENV/bin/pip" install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 echo "== installed $(basename "$wheel")"
 
 echo "== pytest python/tests"
 cd "$ROOT/python/tests"
-NEPHELE_BIN=$ROOT/target/release/nephele "$VENV/bin/python" -m pytest -q -p no:cacheprovider .
+NEPHELE_BIN=$TARGET/release/nephele "$VENV/bin/python" -m pytest -q -p no:cacheprovider . "$@"
 echo "python/ci.sh: done in $(( $(date +%s) - start )) s"

@@ -185,11 +185,26 @@ pub struct FitOutput {
 /// Fit a blob model to a loaded, validated mesh. Fails when the settings are out of range or
 /// the mesh encloses no volume.
 pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> Result<FitOutput, FitError> {
+    fit_reporting(cfg, input, &mut |_| {})
+}
+
+/// The stages of a fit, in order, as [`fit_reporting`] names them (and [`FitOutput::timings`]).
+pub const FIT_STAGES: [&str; 5] = ["winding", "samples", "grow", "select", "optimise"];
+
+/// [`fit`], calling `on_stage` with each stage's name of [`FIT_STAGES`] as it starts (for
+/// front ends that show a fit's progress, like the Python package's `fit(progress=…)`).
+pub fn fit_reporting(
+    cfg: &FitConfig,
+    input: &LoadedMesh,
+    on_stage: &mut dyn FnMut(&str),
+) -> Result<FitOutput, FitError> {
     cfg.validate()?;
     let mesh = &input.mesh;
     let bounds = mesh.bounds();
     let mut timings = Timings::default();
+    on_stage("winding");
     let solid = timings.stage("winding", || WindingNumber::new(mesh));
+    on_stage("samples");
     let samples = timings.stage("samples", || sample_surface(mesh, cfg.samples, cfg.seed));
     let max_winding = max_winding_behind(&solid, &samples, cfg.epsilon * bounds.diagonal());
     if !(max_winding > ENCLOSED) {
@@ -208,9 +223,11 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> Result<FitOutput, FitError> {
         max_selected: cfg.blobs,
         ..DecomposeConfig::default()
     };
+    on_stage("grow");
     let candidates = timings.stage("grow", || {
         decompose::grow_candidates(&dcfg, mesh, &solid, &samples)
     });
+    on_stage("select");
     let order = timings.stage("select", || {
         decompose::select_greedy(&dcfg, &bounds, &candidates)
     });
@@ -226,6 +243,7 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> Result<FitOutput, FitError> {
         initial_a: cfg.initial_a,
         max_blobs: cfg.blobs,
     };
+    on_stage("optimise");
     let optimised = timings.stage("optimise", || {
         optimise::optimise(&cfg.optimisation, &target, &start, THRESHOLD)
     });

@@ -5,9 +5,12 @@ A thin Python layer over the Rust library (module ``nephele._nephele``)::
     import nephele
     model = nephele.fit("builtin:duck", blobs=120, seed=1)
     model.blobs                      # (N, 12) float64, columns nephele.Model.COLUMNS
+    nephele.Model.from_blobs(model.blobs)   # and back
     scene = nephele.Scene.load("scenes/duck-diffusion.ron")
     shot = scene.shot(preview=True)
     rgba = shot.render(shot.frames[0])   # (H, W, 4) float32 linear RGBA, as the EXR
+    for frame, rgba in shot.frames_iter():   # a sequence, holds reused
+        ...
 
 See README.md beside this package for the whole API and its conventions.
 """
@@ -16,10 +19,13 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Dict, Mapping, Optional, Union
+from typing import Any, Dict, Mapping, Union
+
+import numpy as np
 
 from ._nephele import (
     FitError,
+    FrameIter,
     MeshError,
     Model,
     ModelError,
@@ -33,6 +39,7 @@ from ._nephele import (
 
 __all__ = [
     "FitError",
+    "FrameIter",
     "MeshError",
     "Model",
     "ModelError",
@@ -41,6 +48,7 @@ __all__ = [
     "SceneError",
     "Shot",
     "fit",
+    "matte_coverage",
     "scene_from_dict",
     "scene_to_dict",
     "version",
@@ -51,6 +59,18 @@ __all__ = [
 BLOB_COLUMNS = tuple(Model.COLUMNS)
 
 PathLike = Union[str, "os.PathLike[str]"]
+
+
+def matte_coverage(mattes: Mapping[str, Any], name: str) -> "np.ndarray":
+    """The (H, W) float32 coverage of the matte ``name`` in a frame's Cryptomatte layer
+    (``render_passes(frame)["mattes"]``): the sum of its ranks' coverage, 0 where it is not
+    seen. Raises ``KeyError`` for a name the shot does not have."""
+    names = list(mattes["names"])
+    if name not in names:
+        raise KeyError(f"{name!r} is not a matte of this shot (its mattes: {', '.join(names)})")
+    k = names.index(name)
+    return np.where(mattes["index"] == k, mattes["coverage"], np.float32(0)).sum(
+        axis=-1, dtype=np.float32)
 
 
 def scene_from_dict(data: Mapping[str, Any], path: PathLike = "scene.ron") -> Scene:

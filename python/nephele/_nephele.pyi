@@ -1,7 +1,18 @@
-"""Type stubs of the extension module `nephele._nephele` (re-exported by `nephele`)."""
+"""Type stubs of the extension module `nephele._nephele` (re-exported by `nephele`).
+
+The TypedDicts (`Layers`, `Mattes`, `ProgressReport`, `ShotReport`) exist for type checkers
+only: at run time these are plain dicts (import them under `typing.TYPE_CHECKING`)."""
 
 import os
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+import sys
+from typing import (
+    Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union, final,
+)
+
+if sys.version_info >= (3, 11):
+    from typing import Literal, NotRequired, TypedDict
+else:
+    from typing_extensions import Literal, NotRequired, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +35,9 @@ class MeshError(NepheleError): ...
 class FitError(NepheleError): ...
 class ModelError(NepheleError): ...
 
+_Bounds = Tuple[Tuple[float, float, float], Tuple[float, float, float]]
+
+@final
 class Model:
     """A fitted blob model."""
     COLUMNS: List[str]
@@ -39,11 +53,22 @@ class Model:
     @property
     def source(self) -> str: ...
     @property
-    def bounds(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]: ...
+    def bounds(self) -> _Bounds: ...
     def __len__(self) -> int: ...
     def save(self, path: _Path) -> None: ...
     @staticmethod
     def load(path: _Path) -> "Model": ...
+    @staticmethod
+    def from_blobs(
+        blobs: npt.ArrayLike,
+        threshold: float = 1.0,
+        source: str = "python",
+        seed: int = 0,
+        primitive: Literal["ellipsoid", "sphere"] = "ellipsoid",
+        bounds: Optional[_Bounds] = None,
+    ) -> "Model":
+        """The model of an (N, 12) array with ``COLUMNS`` (the inverse of ``blobs``, exact);
+        checked as a model file is (``ModelError``); a wrong shape is a ``ValueError``."""
 
 def fit(
     mesh: _Path,
@@ -51,12 +76,14 @@ def fit(
     seed: Optional[int] = None,
     candidates: Optional[int] = None,
     samples: Optional[int] = None,
-    primitive: str = "ellipsoid",
+    primitive: Literal["ellipsoid", "sphere"] = "ellipsoid",
     progress: Optional[Callable[[str], Any]] = None,
 ) -> Model:
     """Fit a blob model to a mesh file or ``builtin:NAME``; ``progress(stage)`` gets
-    ``"load"``, ``"fit"``, ``"done"``."""
+    ``"load"``, ``"winding"``, ``"samples"``, ``"grow"``, ``"select"``, ``"optimise"``,
+    ``"done"`` as each starts (an exception it raises is raised once the fit is over)."""
 
+@final
 class Scene:
     @staticmethod
     def load(path: _Path) -> "Scene": ...
@@ -87,6 +114,52 @@ class Scene:
         dump_blobs: bool = False,
     ) -> "Shot": ...
 
+class Mattes(TypedDict):
+    """A frame's Cryptomatte layer (``render_passes(frame)["mattes"]``)."""
+    layer: str
+    """The layer name, ``"CryptoObject"``."""
+    key: str
+    """The EXR header's key of the layer (``cryptomatte/<key>/…``)."""
+    names: List[str]
+    """The shot's matte names (one per piece of the animation); a matte's index is its place."""
+    ids: List[float]
+    """Each name's Cryptomatte id (MurmurHash3 as float32)."""
+    manifest: Dict[str, str]
+    """Name -> the id's bits as 8 hex digits, the EXR's manifest."""
+    index: npt.NDArray[np.int32]
+    """(H, W, 6): each rank's matte (into ``names``), -1 where empty."""
+    id: npt.NDArray[np.float32]
+    """(H, W, 6): each rank's id as the EXR stores it (ranks 2s, 2s+1 in ``{layer}0s.R``, ``.B``; 0 where empty)."""
+    coverage: npt.NDArray[np.float32]
+    """(H, W, 6): each rank's coverage, largest first, summing to the pixel's alpha."""
+
+class Layers(TypedDict):
+    """``render_passes``' layers; the passes and mattes only when the shot has passes."""
+    rgba: npt.NDArray[np.float32]
+    depth: npt.NDArray[np.float32]
+    sun: NotRequired[npt.NDArray[np.float32]]
+    sky: NotRequired[npt.NDArray[np.float32]]
+    multiple: NotRequired[npt.NDArray[np.float32]]
+    mattes: NotRequired[Mattes]
+
+class ProgressReport(TypedDict):
+    """What ``render_all``'s ``progress`` gets after each frame."""
+    frame: int
+    of: int
+    skipped: bool
+    seconds: float
+    index: int
+    count: int
+
+class ShotReport(TypedDict):
+    dir: str
+    rendered: int
+    skipped: int
+    out_of_date: List[Tuple[str, int]]
+
+_Frames = Union[None, str, int, Sequence[int]]
+
+@final
 class Shot:
     @property
     def frames(self) -> List[int]: ...
@@ -107,13 +180,29 @@ class Shot:
     def frame_paths(self, frame: int) -> List[str]: ...
     def render(self, frame: int) -> npt.NDArray[np.float32]:
         """(H, W, 4) linear premultiplied RGBA, the EXR's R, G, B, A bit for bit."""
-    def render_passes(self, frame: int) -> Dict[str, npt.NDArray[np.float32]]:
+    def render_passes(self, frame: int) -> Layers:
         """``rgba`` (H, W, 4), ``depth`` (H, W), and with passes ``sun``, ``sky``,
-        ``multiple`` (H, W, 3)."""
+        ``multiple`` (H, W, 3) and the Cryptomatte ``mattes``."""
+    def frames_iter(self, frames: _Frames = None, layers: bool = False) -> "FrameIter":
+        """``(frame, image)`` in order through one renderer (holds and still clouds reused);
+        ``image`` is ``render``'s array, or ``render_passes``' dict with ``layers=True``."""
     def blobs(self, frame: int) -> npt.NDArray[np.float64]: ...
     def camera(self, frame: int) -> Dict[str, Any]: ...
     def render_all(
-        self, progress: Optional[Callable[[Dict[str, Any]], Any]] = None
-    ) -> Dict[str, Any]: ...
+        self, progress: Optional[Callable[[ProgressReport], Any]] = None
+    ) -> ShotReport: ...
+
+@final
+class FrameIter(Iterator[Tuple[int, Any]]):
+    """``Shot.frames_iter``'s iterator: each ``next()`` renders the next frame."""
+    def __iter__(self) -> "FrameIter": ...
+    def __next__(self) -> Tuple[int, Any]: ...
+    def __len__(self) -> int:
+        """Frames left."""
+    @property
+    def frames(self) -> List[int]: ...
+    @property
+    def reuse(self) -> Optional[Literal["frame", "light_grid", "buffers"]]:
+        """What the last frame took from the one before (``None`` before the first)."""
 
 def version() -> str: ...

@@ -2,17 +2,20 @@
 //!
 //! Everything goes through the library's public API, the way the command line does: a scene is
 //! parsed and validated by `nephele::scene::scene_from_str` (so its errors are the CLI's, with
-//! file, line and field), a shot is a `nephele::scene::Shot`, and `render_all` is the shot's own
-//! resumable run. Long work runs with the GIL released.
+//! file, line and field), a shot is a `nephele::scene::Shot`, `render_all` is the shot's own
+//! resumable run (`Shot::run_until`), and `frames_iter` renders frames in memory through one
+//! `nephele::render::FrameRenderer` as that run does (its reuse: holds and still clouds). Long
+//! work runs with the GIL released; Python callbacks are called back under it.
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::sync::RwLock;
 
 use nephele::blobby::{Blob, BlobModel};
 use nephele::decompose::Primitive;
 use nephele::pipeline::{self, FitConfig};
-use nephele::render::Frame;
 use nephele::render::output::ColorSpace;
+use nephele::render::output::cryptomatte::{self, RANKS};
+use nephele::render::{Frame, FrameOptions, FrameRenderer, Reuse};
 use nephele::scene::frames::FrameSelection;
 use nephele::scene::{self, RenderOptions, SceneError as CoreSceneError, SceneFile};
 use pyo3::BoundObject;
@@ -179,6 +182,17 @@ fn blobs_array<'py>(py: Python<'py>, blobs: &[Blob]) -> PyResult<Bound<'py, PyAn
     numpy_array(py, &f64_bytes(&flat), "float64", vec![blobs.len(), 12])
 }
 
+/// `"ellipsoid"` or `"sphere"`.
+fn parse_primitive(name: &str) -> PyResult<Primitive> {
+    match name {
+        "ellipsoid" => Ok(Primitive::Ellipsoid),
+        "sphere" => Ok(Primitive::Sphere),
+        other => Err(PyValueError::new_err(format!(
+            "primitive must be 'ellipsoid' or 'sphere', got {other:?}"
+        ))),
+    }
+}
+
 /// A fitted blob model.
 #[pyclass(module = "nephele", frozen)]
 struct Model {
@@ -255,6 +269,56 @@ impl Model {
             .map_err(model_err)
     }
 
+    /// A model from an (N, 12) array of blob rows with `Model.COLUMNS` (what `blobs` gives,
+    /// or `Shot.blobs(frame)`): its inverse, exact to the bit. `threshold` is the iso-level
+    /// (the fit's is 1.0); `source` names the model's mesh and `bounds` its box (default: the
+    /// box of the blobs' ellipsoids). Checked as a model file is (at least one blob, finite
+    /// values, semi-axes ≥ 0, `a` > 0, unit quaternions), or `ModelError`.
+    #[staticmethod]
+    #[pyo3(signature = (blobs, threshold=nephele::blobby::THRESHOLD, source="python".to_string(), seed=0, primitive="ellipsoid", bounds=None))]
+    fn from_blobs(
+        py: Python<'_>,
+        blobs: &Bound<'_, PyAny>,
+        threshold: f64,
+        source: String,
+        seed: u64,
+        primitive: &str,
+        bounds: Option<([f64; 3], [f64; 3])>,
+    ) -> PyResult<Model> {
+        let np = py.import("numpy")?;
+        let array = np.call_method1("asarray", (blobs, "float64"))?;
+        let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+        if shape.len() != 2 || shape[1] != BLOB_COLUMNS.len() {
+            return Err(PyValueError::new_err(format!(
+                "blobs must be an (N, {}) array with columns {}, got shape {shape:?}",
+                BLOB_COLUMNS.len(),
+                BLOB_COLUMNS.join(" ")
+            )));
+        }
+        let rows: Vec<[f64; 12]> = array.call_method0("tolist")?.extract()?;
+        let blobs = rows
+            .iter()
+            .map(|r| Blob {
+                center: glam::DVec3::new(r[0], r[1], r[2]),
+                rotation: glam::DQuat::from_xyzw(r[3], r[4], r[5], r[6]),
+                semi_axes: glam::DVec3::new(r[7], r[8], r[9]),
+                a: r[10],
+                b: r[11],
+            })
+            .collect();
+        let mut model = BlobModel::from_blobs(&source, threshold, seed, blobs);
+        model.primitive = parse_primitive(primitive)?;
+        if let Some((lo, hi)) = bounds {
+            model.source.bounds.min = glam::DVec3::from_array(lo);
+            model.source.bounds.max = glam::DVec3::from_array(hi);
+        }
+        // The model file's own checks: the model through its RON text (exact both ways).
+        let label = Path::new("Model.from_blobs");
+        let text = nephele::blobby::model_file::to_ron(&model);
+        let model = nephele::blobby::model_file::from_ron(label, &text).map_err(model_err)?;
+        Ok(Model { model })
+    }
+
     /// Read a model file (RON or the binary codec).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
@@ -265,7 +329,11 @@ impl Model {
     }
 }
 
-/// Fit a blob model to a mesh file (OBJ, PLY, OFF, STL) or `builtin:NAME`.
+/// Fit a blob model to a mesh file (OBJ, PLY, OFF, STL) or `builtin:NAME`, with the GIL
+/// released. `progress(stage)` is called as each stage starts: `"load"`, then the fit's
+/// `"winding"`, `"samples"`, `"grow"`, `"select"`, `"optimise"`, then `"done"`. A fit cannot
+/// stop midway: an exception `progress` raises (or Ctrl-C) is raised once the fit is over,
+/// and no later stage is reported.
 #[pyfunction]
 #[pyo3(signature = (mesh, blobs=None, seed=None, candidates=None, samples=None, primitive="ellipsoid", progress=None))]
 #[allow(clippy::too_many_arguments)]
@@ -285,15 +353,7 @@ fn fit(
         candidates: candidates.unwrap_or(defaults.candidates),
         samples: samples.unwrap_or(defaults.samples),
         seed: seed.unwrap_or(defaults.seed),
-        primitive: match primitive {
-            "ellipsoid" => Primitive::Ellipsoid,
-            "sphere" => Primitive::Sphere,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "primitive must be 'ellipsoid' or 'sphere', got {other:?}"
-                )));
-            }
-        },
+        primitive: parse_primitive(primitive)?,
         ..defaults
     };
     cfg.validate().map_err(fit_err)?;
@@ -314,10 +374,28 @@ fn fit(
             warnings.call_method1("warn", (w.to_string(),))?;
         }
     }
-    stage("fit")?;
-    let out = py
-        .detach(|| pipeline::fit(&cfg, &loaded))
-        .map_err(fit_err)?;
+    // The fit's own stages, reported as they start; the fit cannot stop midway, so an
+    // exception from `progress` (or Ctrl-C) is raised when it ends, and no stage after it is
+    // reported.
+    let mut failed: Option<PyErr> = None;
+    let out = py.detach(|| {
+        pipeline::fit_reporting(&cfg, &loaded, &mut |name| {
+            if failed.is_some() {
+                return;
+            }
+            Python::attach(|py| {
+                let called = match &progress {
+                    Some(cb) => cb.call1(py, (name,)).map(|_| ()),
+                    None => Ok(()),
+                };
+                failed = called.and_then(|()| py.check_signals()).err();
+            });
+        })
+    });
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    let out = out.map_err(fit_err)?;
     stage("done")?;
     Ok(Model { model: out.model })
 }
@@ -435,32 +513,7 @@ impl Scene {
         region: Option<String>,
         dump_blobs: bool,
     ) -> PyResult<Shot> {
-        let frames = match frames {
-            None => None,
-            Some(f) => {
-                let text = if let Ok(s) = f.extract::<String>() {
-                    s
-                } else if let Ok(n) = f.extract::<u32>() {
-                    n.to_string()
-                } else {
-                    let list: Vec<u32> = f.extract().map_err(|_| {
-                        PyValueError::new_err(
-                            "frames must be a selection string ('1..24,30'), a frame number or a list of frame numbers",
-                        )
-                    })?;
-                    list.iter()
-                        .map(|n| n.to_string())
-                        .collect::<Vec<_>>()
-                        .join(",")
-                };
-                Some(text.parse::<FrameSelection>().map_err(|e| {
-                    PyErr::new::<SceneError, _>(format!(
-                        "{}: frames: {e}",
-                        self.scene.path.display()
-                    ))
-                })?)
-            }
-        };
+        let frames = frames.map(|f| selection(f, &self.scene.path)).transpose()?;
         let mut scene = self.scene.clone();
         if let Some(list) = formats {
             let mut out = Vec::new();
@@ -485,21 +538,43 @@ impl Scene {
             region,
         };
         let shot = scene::Shot::open(scene, &options).map_err(scene_err)?;
-        Ok(Shot {
-            shot: RwLock::new(shot),
-        })
+        Ok(Shot { shot })
     }
 }
 
-/// A scene's shot, opened with render options.
+/// A frame selection from Python: a selection string (`"1..24,30"`), a frame number or a
+/// list of frame numbers; `path` (the scene's) labels a malformed one.
+fn selection(f: &Bound<'_, PyAny>, path: &Path) -> PyResult<FrameSelection> {
+    let text = if let Ok(s) = f.extract::<String>() {
+        s
+    } else if let Ok(n) = f.extract::<u32>() {
+        n.to_string()
+    } else {
+        let list: Vec<u32> = f.extract().map_err(|_| {
+            PyValueError::new_err(
+                "frames must be a selection string ('1..24,30'), a frame number or a list of frame numbers",
+            )
+        })?;
+        list.iter()
+            .map(|n| n.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    text.parse::<FrameSelection>()
+        .map_err(|e| PyErr::new::<SceneError, _>(format!("{}: frames: {e}", path.display())))
+}
+
+/// A scene's shot, opened with render options. Nothing mutates it after `Scene.shot`: its
+/// target and plan are made once, on first need, so any number of threads (and a
+/// `render_all` progress callback) can use it at once.
 #[pyclass(module = "nephele", frozen)]
 struct Shot {
-    shot: RwLock<scene::Shot>,
+    shot: scene::Shot,
 }
 
 impl Shot {
-    fn read(&self) -> std::sync::RwLockReadGuard<'_, scene::Shot> {
-        self.shot.read().unwrap_or_else(|p| p.into_inner())
+    fn read(&self) -> &scene::Shot {
+        &self.shot
     }
 
     /// The shot's 0-based frame of `frame`, checked against the whole shot.
@@ -514,13 +589,151 @@ impl Shot {
         Ok(shot.index(frame))
     }
 
-    /// Render `frame` with the GIL released.
-    fn frame(&self, py: Python<'_>, frame: u32) -> PyResult<(Frame, ColorSpace)> {
+    /// Render `frame` on its own (nothing reused, nothing kept) with the GIL released, and
+    /// convert it for numpy while still without the GIL.
+    fn frame(&self, py: Python<'_>, frame: u32) -> PyResult<Layers> {
         let shot = self.read();
-        let k = Self::index(&shot, frame)?;
+        let k = Self::index(shot, frame)?;
         let space = shot.scene().file.output.colorspace;
-        let image = py.detach(|| shot.render_frame(k)).map_err(scene_err)?;
-        Ok((image, space))
+        py.detach(|| shot.render_frame(k).map(|image| Layers::of(&image, space)))
+            .map_err(scene_err)
+    }
+}
+
+/// The frame a [`FrameRenderer`] renders for 0-based frame `k` of `shot`: what the shot loop
+/// (`Shot::run`) does for each frame — the frame's settings and blobs, its shutter, the shot's
+/// film — so a frame comes out with the bits of the CLI's file.
+fn render_with(
+    renderer: &mut FrameRenderer,
+    shot: &scene::Shot,
+    k: u32,
+) -> Result<(Layers, Reuse), CoreSceneError> {
+    let settings = shot.settings(k)?;
+    let blobs = shot.blobs(k)?;
+    let shutter = shot.shutter(k, settings.quality.time_samples)?;
+    let options = FrameOptions {
+        shutter: shutter.as_ref(),
+        film: shot.film()?,
+    };
+    let (image, report) = renderer.render_reporting(&settings, &blobs, &options);
+    let space = shot.scene().file.output.colorspace;
+    Ok((Layers::of(image, space), report.reuse))
+}
+
+/// A rendered frame as the bytes of its numpy arrays (native-endian), made without the GIL.
+struct Layers {
+    width: usize,
+    height: usize,
+    /// (H, W, 4) float32 RGBA in the output colour space.
+    rgba: Vec<u8>,
+    /// (H, W) float32.
+    depth: Vec<u8>,
+    /// `sun`, `sky`, `multiple`: (H, W, 3) float32 each.
+    passes: Option<[(&'static str, Vec<u8>); 3]>,
+    mattes: Option<MatteLayers>,
+}
+
+/// A frame's Cryptomatte layer ([`nephele::render::IdMattes`]) as arrays.
+struct MatteLayers {
+    layer: String,
+    names: Vec<String>,
+    /// (H, W, RANKS) int32: the rank's matte (index into `names`), -1 where empty.
+    index: Vec<u8>,
+    /// (H, W, RANKS) float32: the rank's id as the EXR stores it (0 where empty).
+    id: Vec<u8>,
+    /// (H, W, RANKS) float32: the rank's coverage.
+    coverage: Vec<u8>,
+}
+
+impl Layers {
+    fn of(image: &Frame, space: ColorSpace) -> Layers {
+        let mut rgba = Vec::with_capacity(image.alpha.len() * 4);
+        for (rgb, a) in image.rgb.iter().zip(&image.alpha) {
+            rgba.extend_from_slice(&convert(rgb, space));
+            rgba.push(*a);
+        }
+        let passes = image.passes.as_ref().map(|p| {
+            let layer = |l: &[[f32; 3]]| {
+                f32_bytes(&l.iter().flat_map(|c| convert(c, space)).collect::<Vec<_>>())
+            };
+            [
+                ("sun", layer(&p.sun)),
+                ("sky", layer(&p.sky)),
+                ("multiple", layer(&p.multiple)),
+            ]
+        });
+        let mattes = image.mattes.as_ref().map(|m| {
+            let ids: Vec<f32> = m.names.iter().map(|n| cryptomatte::name_id(n)).collect();
+            let n = m.ranks.len() * RANKS;
+            let (mut index, mut id, mut coverage) = (
+                Vec::with_capacity(n),
+                Vec::with_capacity(n),
+                Vec::with_capacity(n),
+            );
+            for pixel in &m.ranks {
+                for r in pixel {
+                    // The EXR writer's rule: an id only where the rank covers something.
+                    let named = ids.get(r.matte as usize).filter(|_| r.coverage > 0.0);
+                    index.push(named.map_or(-1, |_| r.matte as i32));
+                    id.push(named.copied().unwrap_or(0.0));
+                    coverage.push(r.coverage);
+                }
+            }
+            MatteLayers {
+                layer: m.layer.clone(),
+                names: m.names.clone(),
+                index: index.iter().flat_map(|x| x.to_ne_bytes()).collect(),
+                id: f32_bytes(&id),
+                coverage: f32_bytes(&coverage),
+            }
+        });
+        Layers {
+            width: image.width as usize,
+            height: image.height as usize,
+            rgba: f32_bytes(&rgba),
+            depth: f32_bytes(&image.depth),
+            passes,
+            mattes,
+        }
+    }
+
+    fn rgba<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        numpy_array(py, &self.rgba, "float32", vec![self.height, self.width, 4])
+    }
+
+    /// `render_passes`' dict.
+    fn dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (h, w) = (self.height, self.width);
+        let out = PyDict::new(py);
+        out.set_item("rgba", self.rgba(py)?)?;
+        out.set_item(
+            "depth",
+            numpy_array(py, &self.depth, "float32", vec![h, w])?,
+        )?;
+        if let Some(passes) = &self.passes {
+            for (name, bytes) in passes {
+                out.set_item(*name, numpy_array(py, bytes, "float32", vec![h, w, 3])?)?;
+            }
+        }
+        if let Some(m) = &self.mattes {
+            let d = PyDict::new(py);
+            d.set_item("layer", &m.layer)?;
+            d.set_item("names", &m.names)?;
+            let ids: Vec<f32> = m.names.iter().map(|n| cryptomatte::name_id(n)).collect();
+            let manifest = PyDict::new(py);
+            for (name, id) in m.names.iter().zip(&ids) {
+                manifest.set_item(name, format!("{:08x}", id.to_bits()))?;
+            }
+            d.set_item("ids", ids)?;
+            d.set_item("manifest", manifest)?;
+            d.set_item("key", cryptomatte::layer_key(&m.layer))?;
+            let shape = vec![h, w, RANKS];
+            d.set_item("index", numpy_array(py, &m.index, "int32", shape.clone())?)?;
+            d.set_item("id", numpy_array(py, &m.id, "float32", shape.clone())?)?;
+            d.set_item("coverage", numpy_array(py, &m.coverage, "float32", shape)?)?;
+            out.set_item("mattes", d)?;
+        }
+        Ok(out)
     }
 }
 
@@ -579,63 +792,66 @@ impl Shot {
 
     /// The file names of `frame` (one per format, plus the blob dump if asked), in `dir`.
     fn frame_paths(&self, frame: u32) -> Vec<PathBuf> {
-        scene::frame_files::frame_paths(&self.read(), frame)
+        scene::frame_files::frame_paths(self.read(), frame)
     }
 
     /// Render `frame` in memory: (H, W, 4) float32 linear RGBA, premultiplied, in the scene's
     /// `output.colorspace`: the values of the R, G, B, A channels of the EXR that
-    /// `nephele render` writes for the frame, bit for bit.
+    /// `nephele render` writes for the frame, bit for bit. The frame is rendered on its own
+    /// (nothing of it is kept); `frames_iter` renders a sequence with the shot's reuse.
     fn render<'py>(&self, py: Python<'py>, frame: u32) -> PyResult<Bound<'py, PyAny>> {
-        let (image, space) = self.frame(py, frame)?;
-        let mut flat = Vec::with_capacity(image.alpha.len() * 4);
-        for (rgb, a) in image.rgb.iter().zip(&image.alpha) {
-            flat.extend_from_slice(&convert(rgb, space));
-            flat.push(*a);
-        }
-        numpy_array(
-            py,
-            &f32_bytes(&flat),
-            "float32",
-            vec![image.height as usize, image.width as usize, 4],
-        )
+        self.frame(py, frame)?.rgba(py)
     }
 
     /// Render `frame` in memory with every layer the EXR has: `rgba` (H, W, 4), `depth`
     /// (H, W; the EXR's Z, infinity where empty), and when the shot has passes (`passes=True`
-    /// or `output.passes`) `sun`, `sky`, `multiple` (H, W, 3 each; they sum to the RGB).
+    /// or `output.passes`) `sun`, `sky`, `multiple` (H, W, 3 each; they sum to the RGB) and
+    /// `mattes`, the Cryptomatte layer (a dict: `layer`, `names`, `ids`, `manifest`, `key`,
+    /// and (H, W, 6) arrays `index` int32, `id` and `coverage` float32, ranked by coverage).
     fn render_passes<'py>(&self, py: Python<'py>, frame: u32) -> PyResult<Bound<'py, PyDict>> {
-        let (image, space) = self.frame(py, frame)?;
-        let (w, h) = (image.width as usize, image.height as usize);
-        let out = PyDict::new(py);
-        let mut flat = Vec::with_capacity(w * h * 4);
-        for (rgb, a) in image.rgb.iter().zip(&image.alpha) {
-            flat.extend_from_slice(&convert(rgb, space));
-            flat.push(*a);
-        }
-        out.set_item(
-            "rgba",
-            numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 4])?,
-        )?;
-        out.set_item(
-            "depth",
-            numpy_array(py, &f32_bytes(&image.depth), "float32", vec![h, w])?,
-        )?;
-        if let Some(p) = &image.passes {
-            for (name, layer) in [("sun", &p.sun), ("sky", &p.sky), ("multiple", &p.multiple)] {
-                let flat: Vec<f32> = layer.iter().flat_map(|c| convert(c, space)).collect();
-                out.set_item(
-                    name,
-                    numpy_array(py, &f32_bytes(&flat), "float32", vec![h, w, 3])?,
-                )?;
+        self.frame(py, frame)?.dict(py)
+    }
+
+    /// Render frames in memory, in order, through one renderer that keeps what the shot loop
+    /// keeps (a hold reuses the last frame, a still cloud its light grid): an iterator of
+    /// `(frame, image)`, `image` being `render(frame)`'s array, or `render_passes(frame)`'s
+    /// dict with `layers=True`. `frames` is a selection like `Scene.shot`'s (default: the
+    /// shot's frames). Each frame has the bits `render(frame)` gives.
+    #[pyo3(signature = (frames=None, layers=false))]
+    fn frames_iter(
+        slf: &Bound<'_, Self>,
+        frames: Option<&Bound<'_, PyAny>>,
+        layers: bool,
+    ) -> PyResult<FrameIter> {
+        let shot = slf.get().read();
+        let frames = match frames {
+            None => shot.frames().to_vec(),
+            Some(f) => {
+                let (first, last) = (shot.number(0), shot.number(shot.total() - 1));
+                selection(f, &shot.scene().path)?
+                    .resolve(first, last)
+                    .map_err(|e| {
+                        PyErr::new::<SceneError, _>(format!(
+                            "{}: frames: {e}",
+                            shot.scene().path.display()
+                        ))
+                    })?
             }
-        }
-        Ok(out)
+        };
+        Ok(FrameIter {
+            shot: slf.clone().unbind(),
+            renderer: FrameRenderer::new(),
+            frames,
+            next: 0,
+            layers,
+            reuse: None,
+        })
     }
 
     /// The blobs of `frame`, an (N, 12) float64 array with `Model.COLUMNS`.
     fn blobs<'py>(&self, py: Python<'py>, frame: u32) -> PyResult<Bound<'py, PyAny>> {
         let shot = self.read();
-        let k = Self::index(&shot, frame)?;
+        let k = Self::index(shot, frame)?;
         let blobs = py.detach(|| shot.blobs(k)).map_err(scene_err)?;
         blobs_array(py, &blobs)
     }
@@ -656,7 +872,7 @@ impl Shot {
     /// `world_to_ndc` (4×4, row-vector convention `p' = p · M`).
     fn camera<'py>(&self, py: Python<'py>, frame: u32) -> PyResult<Bound<'py, PyDict>> {
         let shot = self.read();
-        let k = Self::index(&shot, frame)?;
+        let k = Self::index(shot, frame)?;
         let settings = py.detach(|| shot.settings(k)).map_err(scene_err)?;
         let cam = nephele::render::output::CameraFrame::new(
             &settings.camera,
@@ -683,65 +899,69 @@ impl Shot {
         Ok(d)
     }
 
-    /// Render the shot's frames to files, as `nephele render` does (resumable: finished,
-    /// up-to-date frames are skipped unless the shot was opened with `force=True`), one frame
-    /// at a time with the GIL released. `progress(report)` is called after each frame with a
-    /// dict `frame`, `of` (the shot's last frame), `skipped`, `seconds`, `index` (0-based among
-    /// the frames rendered), `count`; an exception it raises stops the shot after that frame.
-    /// Returns `{"dir", "rendered", "skipped", "out_of_date"}`.
+    /// Render the shot's frames to files, as `nephele render` does: one run of the shot
+    /// (`Shot::run`, its reuse and its writing beside the next frame's render), resumable
+    /// (finished, up-to-date frames are skipped unless the shot was opened with `force=True`),
+    /// with the GIL released. `progress(report)` is called after each frame with a dict
+    /// `frame`, `of` (the shot's last frame), `skipped`, `seconds`, `index` (0-based among the
+    /// frames), `count`; the frame's files are then being written (all of them are on disk
+    /// when `render_all` returns). An exception `progress` raises, or Ctrl-C, stops the shot
+    /// after that frame (its files written) and is raised. Returns `{"dir", "rendered",
+    /// "skipped", "out_of_date"}`.
     #[pyo3(signature = (progress=None))]
     fn render_all<'py>(
         &self,
         py: Python<'py>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let mut shot = self.shot.write().unwrap_or_else(|p| p.into_inner());
-        let frames = shot.frames().to_vec();
+        let shot = self.read();
+        let count = shot.frames().len();
         nephele::atomic::check_writable(shot.dir()).map_err(|e| {
             PyErr::new::<SceneError, _>(format!(
                 "output folder {} is not writable: {e}",
                 shot.dir().display()
             ))
         })?;
-        let (mut rendered, mut skipped) = (0u32, 0u32);
-        let mut out_of_date: Vec<(String, u32)> = Vec::new();
-        let result = (|| -> PyResult<()> {
-            for (i, &frame) in frames.iter().enumerate() {
-                shot.set_frames(vec![frame]);
-                let mut last = None;
-                let one: &scene::Shot = &shot;
-                let report = py
-                    .detach(|| one.run(&mut |f| last = Some(f.clone())))
-                    .map_err(scene_err)?;
-                rendered += report.rendered;
-                skipped += report.skipped;
-                for (reason, n) in report.out_of_date {
-                    match out_of_date.iter_mut().find(|(r, _)| *r == reason) {
-                        Some((_, m)) => *m += n,
-                        None => out_of_date.push((reason, n)),
+        let mut index = 0usize;
+        let mut stopped: Option<PyErr> = None;
+        let report = py.detach(|| {
+            shot.run_until(&mut |f| {
+                let i = index;
+                index += 1;
+                Python::attach(|py| {
+                    let called = (|| -> PyResult<()> {
+                        if let Some(cb) = &progress {
+                            let d = PyDict::new(py);
+                            d.set_item("frame", f.frame)?;
+                            d.set_item("of", f.of)?;
+                            d.set_item("skipped", f.skipped)?;
+                            d.set_item("seconds", f.seconds)?;
+                            d.set_item("index", i)?;
+                            d.set_item("count", count)?;
+                            cb.call1(py, (d,))?;
+                        }
+                        py.check_signals()
+                    })();
+                    match called {
+                        Ok(()) => ControlFlow::Continue(()),
+                        Err(e) => {
+                            stopped = Some(e);
+                            ControlFlow::Break(())
+                        }
                     }
-                }
-                if let (Some(cb), Some(f)) = (&progress, last) {
-                    let d = PyDict::new(py);
-                    d.set_item("frame", f.frame)?;
-                    d.set_item("of", f.of)?;
-                    d.set_item("skipped", f.skipped)?;
-                    d.set_item("seconds", f.seconds)?;
-                    d.set_item("index", i)?;
-                    d.set_item("count", frames.len())?;
-                    cb.call1(py, (d,))?;
-                }
-                py.check_signals()?;
-            }
-            Ok(())
-        })();
-        shot.set_frames(frames);
-        result?;
+                })
+            })
+        });
+        // A failed write is the worse news; else the stop's exception.
+        let report = report.map_err(scene_err)?;
+        if let Some(e) = stopped {
+            return Err(e);
+        }
         let d = PyDict::new(py);
-        d.set_item("dir", shot.dir().to_path_buf())?;
-        d.set_item("rendered", rendered)?;
-        d.set_item("skipped", skipped)?;
-        d.set_item("out_of_date", PyList::new(py, out_of_date)?)?;
+        d.set_item("dir", report.output_dir)?;
+        d.set_item("rendered", report.rendered)?;
+        d.set_item("skipped", report.skipped)?;
+        d.set_item("out_of_date", PyList::new(py, report.out_of_date)?)?;
         Ok(d)
     }
 
@@ -756,14 +976,80 @@ impl Shot {
     }
 }
 
+/// `Shot.frames_iter`'s iterator: renders the next frame on `next()` (GIL released),
+/// through one [`FrameRenderer`] for all of them.
+#[pyclass(module = "nephele")]
+struct FrameIter {
+    shot: Py<Shot>,
+    renderer: FrameRenderer,
+    frames: Vec<u32>,
+    next: usize,
+    layers: bool,
+    reuse: Option<Reuse>,
+}
+
+#[pymethods]
+impl FrameIter {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__(&mut self, py: Python<'_>) -> PyResult<Option<(u32, Py<PyAny>)>> {
+        let Some(&frame) = self.frames.get(self.next) else {
+            return Ok(None);
+        };
+        self.next += 1;
+        let shot = self.shot.get().read();
+        let k = shot.index(frame);
+        let renderer = &mut self.renderer;
+        let (layers, reuse) = py
+            .detach(|| render_with(renderer, shot, k))
+            .map_err(scene_err)?;
+        self.reuse = Some(reuse);
+        let image = if self.layers {
+            layers.dict(py)?.into_any().unbind()
+        } else {
+            layers.rgba(py)?.unbind()
+        };
+        Ok(Some((frame, image)))
+    }
+
+    fn __len__(&self) -> usize {
+        self.frames.len() - self.next
+    }
+
+    /// The frame numbers this iterator renders, in order.
+    #[getter]
+    fn frames(&self) -> Vec<u32> {
+        self.frames.clone()
+    }
+
+    /// What the last frame took from the one before: `"frame"` (a hold: nothing rendered),
+    /// `"light_grid"` (a still cloud: its lighting), `"buffers"` (memory only; also the first
+    /// frame and every frame with motion blur); `None` before the first frame.
+    #[getter]
+    fn reuse(&self) -> Option<&'static str> {
+        self.reuse.map(|r| match r {
+            Reuse::Frame => "frame",
+            Reuse::LightGrid => "light_grid",
+            Reuse::Buffers => "buffers",
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "nephele.FrameIter({} of {} frames left)",
+            self.frames.len() - self.next,
+            self.frames.len()
+        )
+    }
+}
+
 /// The library's version.
 #[pyfunction]
 fn version() -> &'static str {
     env!("CARGO_PKG_VERSION")
 }
-
-#[allow(dead_code)]
-fn _assert_path(_: &Path) {}
 
 #[pymodule]
 fn _nephele(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -776,6 +1062,7 @@ fn _nephele(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<Scene>()?;
     m.add_class::<Shot>()?;
+    m.add_class::<FrameIter>()?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())

@@ -8,22 +8,7 @@ import numpy as np
 import pytest
 
 import nephele
-from conftest import REPO, tiny_scene_text
-
-OpenEXR = pytest.importorskip("OpenEXR", reason="the OpenEXR package (pip install OpenEXR) reads the CLI's frames")
-
-
-def read_exr(path):
-    """Channels (name -> 2D array) and header of an EXR, read by OpenEXR's own module."""
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        channels = {name: np.array(c.pixels) for name, c in f.channels().items()}
-        header = dict(f.header())
-    return channels, header
-
-
-def exr_rgba(channels):
-    return np.stack([channels[c] for c in "RGBA"], axis=-1)
-
+from conftest import REPO, exr_rgba, read_exr, tiny_scene_text
 
 # --- fitting and models ---------------------------------------------------------------------
 
@@ -52,7 +37,19 @@ def test_fit_builtin_gives_documented_blob_columns(duck_model, tmp_path):
 def test_fit_progress_and_errors(tmp_path):
     stages = []
     nephele.fit("builtin:sphere", blobs=8, samples=2000, candidates=100, progress=stages.append)
-    assert stages == ["load", "fit", "done"]
+    assert stages == ["load", "winding", "samples", "grow", "select", "optimise", "done"]
+    # An exception from progress is raised (once the fit is over); no later stage is reported.
+    seen = []
+
+    def stop_at_grow(stage):
+        seen.append(stage)
+        if stage == "grow":
+            raise RuntimeError("enough")
+
+    with pytest.raises(RuntimeError, match="enough"):
+        nephele.fit("builtin:sphere", blobs=8, samples=2000, candidates=100,
+                    progress=stop_at_grow)
+    assert seen == ["load", "winding", "samples", "grow"]
     with pytest.raises(nephele.MeshError) as e:
         nephele.fit(tmp_path / "missing.obj")
     assert "missing.obj" in str(e.value) and isinstance(e.value, nephele.NepheleError)
@@ -174,6 +171,7 @@ def test_preview_and_passes_match_the_cli(tmp_path, tiny_scene, cli):
         assert np.array_equal(layers[name], expected), name
     total = layers["sun"] + layers["sky"] + layers["multiple"]
     np.testing.assert_allclose(total, layers["rgba"][..., :3], atol=1e-5)
+    assert set(layers) == {"rgba", "depth", "sun", "sky", "multiple", "mattes"}
     # Without passes there are only the beauty and the depth.
     assert set(nephele.Scene.load(tiny_scene).shot().render_passes(2)) == {"rgba", "depth"}
 

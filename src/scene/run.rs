@@ -3,6 +3,7 @@
 //! when its hash matches ([`super::provenance`]) unless `force` is set, and rendered again,
 //! with the reason counted, when it does not.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use super::lock::FrameLock;
@@ -59,6 +60,21 @@ impl Shot {
     /// Render the shot: skip finished frames (unless `force`), render and write the rest,
     /// calling `on_frame` after each frame.
     pub fn run(&self, on_frame: &mut dyn FnMut(&FrameReport)) -> Result<ShotReport, SceneError> {
+        self.run_until(&mut |f| {
+            on_frame(f);
+            ControlFlow::Continue(())
+        })
+    }
+
+    /// [`Shot::run`] that `on_frame` can stop: when it returns `Break` the shot stops after
+    /// that frame, whose files are written (and its manifest, so it counts as done) before
+    /// this returns; the frames after it are left for the next run. The report counts the
+    /// frames up to the stop. (For front ends that take an interrupt between frames, like the
+    /// Python package's `render_all`.)
+    pub fn run_until(
+        &self,
+        on_frame: &mut dyn FnMut(&FrameReport) -> ControlFlow<()>,
+    ) -> Result<ShotReport, SceneError> {
         let opts = self.options();
         let mut timings = Timings::default();
         let mut report = ShotReport {
@@ -128,7 +144,9 @@ impl Shot {
                 if finished && !opts.stats {
                     drop(lock);
                     report.skipped += 1;
-                    on_frame(&skipped(frame, last));
+                    if on_frame(&skipped(frame, last)).is_break() {
+                        break;
+                    }
                     continue;
                 }
                 let shutter = self.shutter(k, settings.quality.time_samples)?;
@@ -191,12 +209,15 @@ impl Shot {
                 } else {
                     report.rendered += 1;
                 }
-                on_frame(&FrameReport {
+                let stop = on_frame(&FrameReport {
                     frame,
                     of: last,
                     skipped: finished,
                     seconds: start.elapsed().as_secs_f64(),
                 });
+                if stop.is_break() {
+                    break;
+                }
             }
             let last_write = Instant::now();
             finish_writing(&mut writing)?;

@@ -478,3 +478,28 @@ fn cli_refuses_a_lone_sheet_and_writes_nothing() {
     assert!(!dir.join("sheet.ron").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn fit_reporting_names_each_stage_as_it_starts_and_fits_the_same() {
+    let sphere = nephele::mesh::load("builtin:sphere").unwrap();
+    let cfg = FitConfig {
+        blobs: 8,
+        candidates: 100,
+        samples: 2000,
+        ..FitConfig::default()
+    };
+    let mut stages = Vec::new();
+    let reported =
+        nephele::pipeline::fit_reporting(&cfg, &sphere, &mut |s| stages.push(s.to_string()))
+            .unwrap();
+    assert_eq!(stages, nephele::pipeline::FIT_STAGES);
+    // The stages named are the ones timed, in order.
+    let timed: Vec<&str> = reported
+        .timings
+        .stages
+        .iter()
+        .map(|s| s.0.as_str())
+        .collect();
+    assert_eq!(timed, nephele::pipeline::FIT_STAGES);
+    assert_eq!(reported.model, fit(&cfg, &sphere).unwrap().model);
+}

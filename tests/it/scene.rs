@@ -535,6 +535,39 @@ fn cli_resumes_and_force_rerenders() {
     assert_eq!((img.width(), img.height()), (64, 36));
 }
 
+#[test]
+fn run_until_stops_after_a_frame_with_its_files_and_resumes() {
+    use std::ops::ControlFlow;
+    let (dir, path) = tiny_scene("run-until", "Diffusion(())");
+    let out = dir.join("out");
+    let opts = scene::RenderOptions {
+        frames: Some("1..3".parse().unwrap()),
+        output: Some(out.clone()),
+        ..scene::RenderOptions::default()
+    };
+    let shot = scene::Shot::open(scene::load_scene(&path).unwrap(), &opts).unwrap();
+    let mut seen = Vec::new();
+    let report = shot
+        .run_until(&mut |f| {
+            seen.push(f.frame);
+            if f.frame == 2 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+    assert_eq!(seen, [1, 2]);
+    assert_eq!((report.rendered, report.skipped), (2, 0));
+    // Frame 2 is finished (its manifest is written last), frame 3 not started.
+    for f in ["tiny_0001.exr", "tiny_0002.exr", "tiny_0002.manifest.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert!(!out.join("tiny_0003.exr").exists());
+    let report = shot.run(&mut |_| {}).unwrap();
+    assert_eq!((report.rendered, report.skipped), (1, 2));
+}
+
 /// Seeded mutation fuzzing of the scene parser (the always-run tier; see fuzz/README.md):
 /// byte flips, insertions and truncations of every shipped scene never panic, and every error
 /// names the file.
