@@ -28,6 +28,46 @@ pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
     }
 }
 
+/// The trilinear blend of the eight corners, vectorised: `lo` holds the corners with `di = 0`
+/// and `hi` those with `di = 1`, each as `[(0,0), (1,0), (0,1), (1,1)]` in `(dj, dk)`, and `r`
+/// the point's offset in its cell. The fades `t·t·t·(t·(t·6 − 15) + 10)` of the three axes at
+/// once, then `lerp` along x, y and z — the scalar path's operations in its order, so the same
+/// bits ([`crate::render::medium::noise::fade`], [`crate::render::medium::noise::lerp`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn blend_corners(
+    lo: core::arch::x86_64::__m128,
+    hi: core::arch::x86_64::__m128,
+    r: core::arch::x86_64::__m128,
+) -> f32 {
+    use core::arch::x86_64::*;
+    // SAFETY: SSE2 is part of x86-64.
+    unsafe {
+        let t = r;
+        let fades = _mm_mul_ps(
+            _mm_mul_ps(_mm_mul_ps(t, t), t),
+            _mm_add_ps(
+                _mm_mul_ps(
+                    t,
+                    _mm_sub_ps(_mm_mul_ps(t, _mm_set1_ps(6.0)), _mm_set1_ps(15.0)),
+                ),
+                _mm_set1_ps(10.0),
+            ),
+        );
+        let u = _mm_shuffle_ps::<0b00_00_00_00>(fades, fades);
+        // [x00, x10, x01, x11]
+        let mixed = _mm_add_ps(lo, _mm_mul_ps(u, _mm_sub_ps(hi, lo)));
+        // lerp(x00, x10, v) and lerp(x01, x11, v) in lanes 0 and 1, then their lerp by w.
+        let a = _mm_shuffle_ps::<0b00_00_10_00>(mixed, mixed);
+        let b = _mm_shuffle_ps::<0b00_00_11_01>(mixed, mixed);
+        let v = _mm_shuffle_ps::<0b01_01_01_01>(fades, fades);
+        let y = _mm_add_ps(a, _mm_mul_ps(v, _mm_sub_ps(b, a)));
+        let y1 = _mm_shuffle_ps::<0b01_01_01_01>(y, y);
+        let w = _mm_shuffle_ps::<0b10_10_10_10>(fades, fades);
+        _mm_cvtss_f32(_mm_add_ps(y, _mm_mul_ps(w, _mm_sub_ps(y1, y))))
+    }
+}
+
 /// The noise's corners four at a time: lanes `(dj, dk) = (0,0), (1,0), (0,1), (1,1)`, one
 /// vector for `di = 0` and one for `di = 1`. The hash's per-axis products are formed once per
 /// axis (`(i+1)·A = i·A + A` in wrapping arithmetic) and the 32-bit products of the mixing
@@ -38,7 +78,7 @@ mod sse2 {
 
     use glam::Vec3A;
 
-    use crate::render::medium::noise::{HASH_AXES, fade, lerp};
+    use crate::render::medium::noise::HASH_AXES;
 
     /// Low 32 bits of the lane-wise product `a·b` (SSE4.1's `pmulld` from SSE2).
     #[inline(always)]
@@ -99,14 +139,13 @@ mod sse2 {
         let (i, j, k) = (f.x as i32, f.y as i32, f.z as i32);
         let r = p - f;
         let (x, y, z) = (r.x, r.y, r.z);
-        let (u, v, w) = (fade(x), fade(y), fade(z));
         let [a, b, c] = HASH_AXES;
         let hi = (i as u32).wrapping_mul(a);
         let hj = (j as u32).wrapping_mul(b);
         let hk = (k as u32).wrapping_mul(c);
         let (hj1, hk1) = (hj.wrapping_add(b), hk.wrapping_add(c));
         // SAFETY: SSE2 is part of x86-64.
-        let lanes = unsafe {
+        unsafe {
             // `_mm_set_*` lists lanes from the last to the first.
             let jk = _mm_set_epi32(
                 (hj1 ^ hk1) as i32,
@@ -120,13 +159,8 @@ mod sse2 {
             let zs = _mm_set_ps(z - 1.0, z - 1.0, z, z);
             let c0 = grad(h0, _mm_set1_ps(x), ys, zs);
             let c1 = grad(h1, _mm_set1_ps(x - 1.0), ys, zs);
-            let mixed = _mm_add_ps(c0, _mm_mul_ps(_mm_set1_ps(u), _mm_sub_ps(c1, c0)));
-            let mut out = [0.0f32; 4];
-            _mm_storeu_ps(out.as_mut_ptr(), mixed);
-            out
-        };
-        let [x00, x10, x01, x11] = lanes;
-        lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
+            super::blend_corners(c0, c1, r.into())
+        }
     }
 }
 
@@ -138,7 +172,7 @@ mod avx2 {
 
     use glam::Vec3A;
 
-    use crate::render::medium::noise::{HASH_AXES, fade, lerp};
+    use crate::render::medium::noise::HASH_AXES;
 
     /// [`crate::render::medium::noise::mix`] lane-wise.
     #[inline]
@@ -215,15 +249,9 @@ mod avx2 {
         let ys = spread(_mm256_setr_epi32(1, 5, 1, 5, 1, 5, 1, 5));
         let zs = spread(_mm256_setr_epi32(2, 2, 6, 6, 2, 2, 6, 6));
         let corners = grad(h, xs, ys, zs);
-        let (u, v, w) = (fade(r.x), fade(r.y), fade(r.z));
         let c0 = _mm256_castps256_ps128(corners);
         let c1 = _mm256_extractf128_ps::<1>(corners);
-        let mixed = _mm_add_ps(c0, _mm_mul_ps(_mm_set1_ps(u), _mm_sub_ps(c1, c0)));
-        let mut lanes = [0.0f32; 4];
-        // SAFETY: `lanes` holds the four floats stored.
-        unsafe { _mm_storeu_ps(lanes.as_mut_ptr(), mixed) };
-        let [x00, x10, x01, x11] = lanes;
-        lerp(lerp(x00, x10, v), lerp(x01, x11, v), w)
+        super::blend_corners(c0, c1, rv)
     }
 }
 
