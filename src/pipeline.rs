@@ -191,6 +191,17 @@ pub fn fit(cfg: &FitConfig, input: &LoadedMesh) -> Result<FitOutput, FitError> {
 /// The stages of a fit, in order, as [`fit_reporting`] names them (and [`FitOutput::timings`]).
 pub const FIT_STAGES: [&str; 5] = ["winding", "samples", "grow", "select", "optimise"];
 
+/// `timings.stage(name, f)`, telling `on_stage` as it starts.
+fn reported<T>(
+    timings: &mut Timings,
+    on_stage: &mut dyn FnMut(&str),
+    name: &str,
+    f: impl FnOnce() -> T,
+) -> T {
+    on_stage(name);
+    timings.stage(name, f)
+}
+
 /// [`fit`], calling `on_stage` with each stage's name of [`FIT_STAGES`] as it starts (for
 /// front ends that show a fit's progress, like the Python package's `fit(progress=…)`).
 pub fn fit_reporting(
@@ -202,10 +213,12 @@ pub fn fit_reporting(
     let mesh = &input.mesh;
     let bounds = mesh.bounds();
     let mut timings = Timings::default();
-    on_stage("winding");
-    let solid = timings.stage("winding", || WindingNumber::new(mesh));
-    on_stage("samples");
-    let samples = timings.stage("samples", || sample_surface(mesh, cfg.samples, cfg.seed));
+    let solid = reported(&mut timings, on_stage, "winding", || {
+        WindingNumber::new(mesh)
+    });
+    let samples = reported(&mut timings, on_stage, "samples", || {
+        sample_surface(mesh, cfg.samples, cfg.seed)
+    });
     let max_winding = max_winding_behind(&solid, &samples, cfg.epsilon * bounds.diagonal());
     if !(max_winding > ENCLOSED) {
         return Err(FitError::NoVolume {
@@ -223,12 +236,10 @@ pub fn fit_reporting(
         max_selected: cfg.blobs,
         ..DecomposeConfig::default()
     };
-    on_stage("grow");
-    let candidates = timings.stage("grow", || {
+    let candidates = reported(&mut timings, on_stage, "grow", || {
         decompose::grow_candidates(&dcfg, mesh, &solid, &samples)
     });
-    on_stage("select");
-    let order = timings.stage("select", || {
+    let order = reported(&mut timings, on_stage, "select", || {
         decompose::select_greedy(&dcfg, &bounds, &candidates)
     });
     let ellipsoids: Vec<_> = candidates.iter().map(|c| c.ellipsoid).collect();
@@ -243,8 +254,7 @@ pub fn fit_reporting(
         initial_a: cfg.initial_a,
         max_blobs: cfg.blobs,
     };
-    on_stage("optimise");
-    let optimised = timings.stage("optimise", || {
+    let optimised = reported(&mut timings, on_stage, "optimise", || {
         optimise::optimise(&cfg.optimisation, &target, &start, THRESHOLD)
     });
     let mut radii: Vec<f64> = candidates.iter().map(|c| c.sphere_radius).collect();

@@ -54,8 +54,8 @@ pub(crate) fn add(counter: Counter, n: u64) {
 pub(crate) const ENABLED: bool = cfg!(feature = "counters");
 
 /// The counts since the last call, in [`Counter`] order, and reset them (all 0 without the
-/// feature). Read by the benchmark only.
-#[cfg(test)]
+/// feature). Read by the benchmark and [`work_counts`].
+#[cfg(any(test, feature = "counters"))]
 pub(crate) fn take() -> [u64; COUNTERS] {
     #[cfg(feature = "counters")]
     {
@@ -84,11 +84,7 @@ pub fn work_counts() -> Vec<(&'static str, u64)> {
             "fine samples beyond the billows",
             "coarse samples",
         ];
-        NAMES
-            .iter()
-            .zip(&COUNTS)
-            .map(|(&name, c)| (name, c.swap(0, std::sync::atomic::Ordering::Relaxed)))
-            .collect()
+        NAMES.into_iter().zip(take()).collect()
     }
     #[cfg(not(feature = "counters"))]
     {

@@ -176,6 +176,8 @@ pub struct DiffusionPlan {
     /// on first need (a frame inside the blend): a process rendering frames outside it does not
     /// pay for the grid.
     path: OnceLock<BlendPath>,
+    /// [`DiffusionPlan::blend_key`], formed on first call (the cache reads and writes it).
+    key: OnceLock<Option<u64>>,
     /// The iso-level, for the path's volumes.
     threshold: f64,
     /// Category III arrives together (its growth follows the blend progress).
@@ -228,9 +230,13 @@ impl DiffusionPlan {
     /// target (`crate::scene`): two plans with one key have the same path. `None` when the
     /// blend needs no grid (category III not arriving together).
     pub fn blend_key(&self) -> Option<u64> {
-        if !self.together {
-            return None;
-        }
+        *self
+            .key
+            .get_or_init(|| self.together.then(|| self.hash_blend_inputs()))
+    }
+
+    /// FNV-1a of the blend's inputs ([`DiffusionPlan::blend_key`]).
+    fn hash_blend_inputs(&self) -> u64 {
         // FNV-1a over the bits (not `Hash`: the key is stored in a file name, so it must be
         // the same in every build).
         let mut h = 0xcbf2_9ce4_8422_2325u64;
@@ -257,7 +263,7 @@ impl DiffusionPlan {
                 }
             }
         }
-        Some(h)
+        h
     }
 
     /// The blend's path as knots `[u, detail, fitted]`, once made (by a frame inside the blend,
@@ -397,6 +403,7 @@ impl DiffusionPlan {
             blend_start,
             blend_seconds: g3,
             path: OnceLock::new(),
+            key: OnceLock::new(),
             threshold,
             early_share,
             together: cfg.category_iii == DetailArrival::Together,
