@@ -49,46 +49,15 @@ mod avx2 {
     use core::arch::x86_64::*;
 
     use crate::render::medium::noise::HASH_AXES;
-
-    /// [`crate::render::medium::noise::mix`] lane-wise.
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    fn mix(h: __m256i) -> __m256i {
-        let h = _mm256_xor_si256(h, _mm256_srli_epi32::<15>(h));
-        let h = _mm256_mullo_epi32(h, _mm256_set1_epi32(0x2C1B_3C6D));
-        let h = _mm256_xor_si256(h, _mm256_srli_epi32::<12>(h));
-        let h = _mm256_mullo_epi32(h, _mm256_set1_epi32(0x297A_2D39));
-        _mm256_xor_si256(h, _mm256_srli_epi32::<15>(h))
-    }
-
-    /// `a` where `mask` is set, else `b` (all-ones or all-zeros lanes).
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    fn select(mask: __m256, a: __m256, b: __m256) -> __m256 {
-        _mm256_or_ps(_mm256_and_ps(mask, a), _mm256_andnot_ps(mask, b))
-    }
+    use crate::render::medium::noise_simd::avx2::{grad, mix};
 
     /// One corner's contribution: [`crate::render::medium::noise::grad`] of the corner's hash
-    /// `hx ^ hy ^ hz` (the axes' products) and the point's offset from it.
+    /// `hx ^ hy ^ hz` (the axes' products) and the point's offset from it (the one-point AVX2
+    /// noise's hash and gradient, here over eight points).
     #[inline]
     #[target_feature(enable = "avx2")]
     fn corner(hx: __m256i, hy: __m256i, hz: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
-        let h = mix(_mm256_xor_si256(_mm256_xor_si256(hx, hy), hz));
-        let h = _mm256_and_si256(h, _mm256_set1_epi32(15));
-        let below8 = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(8), h));
-        let below4 = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(4), h));
-        let x_as_v = _mm256_castsi256_ps(_mm256_or_si256(
-            _mm256_cmpeq_epi32(h, _mm256_set1_epi32(12)),
-            _mm256_cmpeq_epi32(h, _mm256_set1_epi32(14)),
-        ));
-        let u = select(below8, x, y);
-        let v = select(below4, y, select(x_as_v, x, z));
-        let su = _mm256_slli_epi32::<31>(_mm256_and_si256(h, _mm256_set1_epi32(1)));
-        let sv = _mm256_slli_epi32::<30>(_mm256_and_si256(h, _mm256_set1_epi32(2)));
-        _mm256_add_ps(
-            _mm256_xor_ps(u, _mm256_castsi256_ps(su)),
-            _mm256_xor_ps(v, _mm256_castsi256_ps(sv)),
-        )
+        grad(mix(_mm256_xor_si256(_mm256_xor_si256(hx, hy), hz)), x, y, z)
     }
 
     /// `6t⁵ − 15t⁴ + 10t³` as [`crate::render::medium::noise::fade`] forms it.

@@ -167,7 +167,7 @@ mod sse2 {
 /// All eight corners at once: lanes 0–3 are `di = 0`, lanes 4–7 `di = 1`, each half in the SSE2
 /// version's `(dj, dk)` order; AVX2 has the 32-bit lane product `vpmulld` the mixing rounds need.
 #[cfg(target_arch = "x86_64")]
-mod avx2 {
+pub(super) mod avx2 {
     use core::arch::x86_64::*;
 
     use glam::Vec3A;
@@ -177,7 +177,7 @@ mod avx2 {
     /// [`crate::render::medium::noise::mix`] lane-wise.
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn mix(h: __m256i) -> __m256i {
+    pub(in crate::render::medium) fn mix(h: __m256i) -> __m256i {
         let h = _mm256_xor_si256(h, _mm256_srli_epi32::<15>(h));
         let h = _mm256_mullo_epi32(h, _mm256_set1_epi32(0x2C1B_3C6D));
         let h = _mm256_xor_si256(h, _mm256_srli_epi32::<12>(h));
@@ -195,7 +195,7 @@ mod avx2 {
     /// [`crate::render::medium::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn grad(h: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
+    pub(in crate::render::medium) fn grad(h: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
         let h = _mm256_and_si256(h, _mm256_set1_epi32(15));
         let below8 = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(8), h));
         let below4 = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(4), h));
