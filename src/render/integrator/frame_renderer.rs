@@ -222,6 +222,7 @@ pub fn render_reference(settings: &RenderSettings, blobs: &[Blob], divisor: f32)
     fine.quality.optical_step /= divisor;
     let mut reference = medium.clone();
     reference.set_step(medium.step() / divisor);
+    reference.set_stride(0.0);
     render_medium(&fine, &reference, &grid, &BEAUTY)
 }
 

@@ -62,6 +62,10 @@ pub(crate) fn shaded_march<M: Medium, L: ShadowDepths>(film: &Film) -> MarchFn<M
 /// sample that was empty, in fine
 /// segments of optical thickness at most `optical_step` (so a step never hides a steep change
 /// of light depth); after a coarse step's worth of empty fine samples the march coarsens again.
+/// Until the ray has met density, an empty sample where density may lie (the billows' outer
+/// band) is followed by a stride of [`Medium::empty_stride`] when that is longer than the fine
+/// step; a stride that finds density is discarded like a coarse one and its span re-marched
+/// finely from the empty sample before it.
 /// Segments are clipped to the interval, so piecewise-constant media integrate exactly.
 ///
 /// With `MATTES`, each sample's share of the pixel's opacity goes to `coverage`, for the matte
@@ -97,6 +101,7 @@ pub(crate) fn march<
     let fine = |t_acc: f32| {
         ((optical_step / t_acc).min(MAX_OPTICAL_STEP) * inv_sigma).clamp(coarse * 1e-3, coarse)
     };
+    let stride = medium.empty_stride().min(coarse);
     let (mut t_acc, mut rgb, mut depth_sum, mut tau) = (1.0f32, Vec3A::ZERO, 0.0f32, 0.0f32);
     let mut budget = MAX_STEPS;
     let mut passes = [Vec3A::ZERO; 3];
@@ -105,6 +110,10 @@ pub(crate) fn march<
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
         let (mut s, mut h, mut in_medium, mut empty_run, mut last_empty) =
             (a, coarse, false, 0.0f32, a);
+        // `striding`: the step is a stride from an empty sample; `fine_to`: after a stride
+        // found density, the fine steps run at least to the stride's end (else they would
+        // stride again into the density they went back for, and re-march it over and over).
+        let (mut striding, mut fine_to) = (false, a);
         while s < b && budget > 0 {
             budget -= 1;
             let len = h.min(b - s);
@@ -138,12 +147,28 @@ pub(crate) fn march<
                     // assumed so).
                     h = f;
                     s = last_empty;
+                    striding = false;
                     continue;
                 }
             }
             if sigma <= 0.0 {
                 counters::add(Counter::EmptyFine, 1);
+                last_empty = t;
                 s += len;
+                if s >= fine_to {
+                    let f = fine(t_acc);
+                    striding = stride > f && t_acc == 1.0;
+                    h = if striding { stride } else { f };
+                }
+                continue;
+            }
+            if striding {
+                // A stride found density: go back to the empty sample before it and step
+                // finely over the whole stride.
+                striding = false;
+                fine_to = s + len;
+                h = fine(t_acc);
+                s = last_empty;
                 continue;
             }
             let absorbed = t_acc * (1.0 - (-sigma * len).exp());

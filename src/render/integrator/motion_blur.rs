@@ -204,6 +204,9 @@ impl<M: Medium> Medium for Bounded<'_, M> {
     fn max_extinction(&self) -> f32 {
         self.medium.max_extinction()
     }
+    fn empty_stride(&self) -> f32 {
+        self.medium.empty_stride()
+    }
 }
 
 /// Largest travel of a live blob's centre from the frame within the shutter, in cells of a

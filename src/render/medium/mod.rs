@@ -103,6 +103,14 @@ pub trait Medium: Sync {
 
     /// Upper bound of the extinction (sets the fine step inside the medium).
     fn max_extinction(&self) -> f32;
+
+    /// Stride (world units) the march may take, before the ray has met any density, from an
+    /// empty sample where [`Medium::sample`] said density may lie; where a stride finds density
+    /// the march goes back to the empty sample and steps finely over the stride. It may step
+    /// over a sliver of density thinner than the stride. Default 0: the fine step everywhere.
+    fn empty_stride(&self) -> f32 {
+        0.0
+    }
 }
 
 /// Shape of a [`Homogeneous`] medium.

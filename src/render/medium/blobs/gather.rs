@@ -335,4 +335,8 @@ impl Medium for BlobMedium {
     fn max_extinction(&self) -> f32 {
         self.params.sigma
     }
+
+    fn empty_stride(&self) -> f32 {
+        self.stride
+    }
 }

@@ -31,6 +31,14 @@ pub(crate) const FINEST_BILLOW_PIXELS: f32 = 3.0;
 /// not set the march step ([`BlobMedium`]'s `step_for`).
 pub(crate) const SPECK: f32 = 0.05;
 
+/// The march's stride from an empty sample in the billows' band, before the ray has met any
+/// density, as a fraction of the edge's width `W` ([`crate::render::Medium::empty_stride`]): half
+/// of it is four fine steps at `Final` and two at `Preview` (`Draft`'s fine step is longer, so it
+/// does not stride). Measured on the 1080p finished duck: 18 % fewer march samples, 1.12× faster,
+/// and beyond 2/255 of a quarter-step reference in 0.149 % of pixels against 0.119 % without; a
+/// stride of the whole `W` saves 28 % but misses billow slivers (0.27 %).
+pub(crate) const STRIDE_OF_EDGE: f32 = 0.5;
+
 /// Smallest `A` the renderer gives a blob: the shell between a blob's iso-surface and the end
 /// of its support must hold the billows' tops (at the fitted minimum, 0.05, it is 2 % of the
 /// radius, and the billows flattened against the support into a thin glassy dome).
@@ -72,6 +80,9 @@ pub struct BlobMedium {
     hi: Vec<Vec3A>,
     params: DensityParams,
     step: f32,
+    /// The march's stride from an empty sample in the billows' band, before any density
+    /// ([`crate::render::Medium::empty_stride`]): [`STRIDE_OF_EDGE`] of the edge's width.
+    stride: f32,
     /// The cumulus base, if any.
     base: Option<BasePlane>,
     /// Velocity of each live blob's centre (world units per second); empty for a still cloud.
@@ -106,6 +117,12 @@ impl BlobMedium {
     /// Use `step` as the coarse march step (all time samples of a frame march alike).
     pub(crate) fn set_step(&mut self, step: f32) {
         self.step = step;
+    }
+
+    /// Use `stride` as the march's stride from empty samples (0: none, as the reference march
+    /// takes).
+    pub(crate) fn set_stride(&mut self, stride: f32) {
+        self.stride = stride;
     }
 
     fn build(
@@ -145,6 +162,7 @@ impl BlobMedium {
             },
             base: settings.base,
             step: 0.0,
+            stride: STRIDE_OF_EDGE * settings.cloud.edge.max(0.0) * length,
             velocity: Vec::new(),
             sweep: 0.0,
         };
