@@ -367,9 +367,7 @@ impl Billows {
                         return Err(answer);
                     }
                 }
-                for q in points.iter_mut() {
-                    *q = *q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
-                }
+                to_next_octave(points, o);
             }
         } else {
             let mut ahead = Ahead::new();
@@ -403,6 +401,15 @@ impl Billows {
             q = q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
         }
         sum
+    }
+}
+
+/// Advance the blobs' noise points from octave `o`'s lattice to octave `o + 1`'s (in place;
+/// the one order both of [`Billows::blend`]'s paths use, so they see the same bits).
+#[inline]
+fn to_next_octave(points: &mut [Vec3A], o: usize) {
+    for q in points.iter_mut() {
+        *q = *q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
     }
 }
 
@@ -461,10 +468,7 @@ impl Ahead {
                 self.blob += 1;
             } else {
                 // Past this octave's blobs (or an octave without depth): on to the next.
-                let o = self.octave;
-                for q in points.iter_mut() {
-                    *q = *q * LACUNARITY + OCTAVE_SHIFT * (o + 1) as f32;
-                }
+                to_next_octave(points, self.octave);
                 self.octave += 1;
                 self.blob = 0;
             }
