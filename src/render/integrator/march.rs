@@ -110,10 +110,10 @@ pub(crate) fn march<
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
         let (mut s, mut h, mut in_medium, mut empty_run, mut last_empty) =
             (a, coarse, false, 0.0f32, a);
-        // `striding`: the step is a stride from an empty sample; `fine_to`: after a stride
-        // found density, the fine steps run at least to the stride's end (else they would
-        // stride again into the density they went back for, and re-march it over and over).
-        let (mut striding, mut fine_to) = (false, a);
+        // `fine_to`: after a stride found density, the fine steps run at least to the stride's
+        // end (else they would stride again into the density they went back for, and re-march
+        // it over and over).
+        let mut fine_to = a;
         while s < b && budget > 0 {
             budget -= 1;
             let len = h.min(b - s);
@@ -147,7 +147,6 @@ pub(crate) fn march<
                     // assumed so).
                     h = f;
                     s = last_empty;
-                    striding = false;
                     continue;
                 }
             }
@@ -157,17 +156,20 @@ pub(crate) fn march<
                 s += len;
                 if s >= fine_to {
                     let f = fine(t_acc);
-                    striding = stride > f && t_acc == 1.0;
-                    h = if striding { stride } else { f };
+                    h = if stride > f && t_acc == 1.0 {
+                        stride
+                    } else {
+                        f
+                    };
                 }
                 continue;
             }
-            if striding {
-                // A stride found density: go back to the empty sample before it and step
-                // finely over the whole stride.
-                striding = false;
+            let f = fine(t_acc);
+            if h > f {
+                // A stride found density (the only step longer than the fine one here): go back
+                // to the empty sample before it and step finely over the whole stride.
                 fine_to = s + len;
-                h = fine(t_acc);
+                h = f;
                 s = last_empty;
                 continue;
             }

@@ -204,6 +204,7 @@ impl<M: Medium> Medium for Bounded<'_, M> {
     fn max_extinction(&self) -> f32 {
         self.medium.max_extinction()
     }
+
     fn empty_stride(&self) -> f32 {
         self.medium.empty_stride()
     }
