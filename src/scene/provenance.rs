@@ -39,7 +39,7 @@ use crate::render::{Film, RenderSettings};
 /// The renderer's version: raised whenever a change makes any frame's pixels or grids differ
 /// (the pinned seeded frame hashes in the tests change with it, and a test fails if they change
 /// while it does not). Frames of another render version are re-rendered on resume.
-pub const RENDER_VERSION: u32 = 2;
+pub const RENDER_VERSION: u32 = 3;
 
 /// One part of a frame's inputs, hashed on its own so that a reason can name what changed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

@@ -35,7 +35,7 @@ pub(super) struct GatherBuffers {
 }
 
 /// Sorts a ray's hits by entry through 8-byte keys (entry, then gathering order) and one copy
-/// of each hit into place, instead of swapping the 144-byte hits themselves (their sort had
+/// of each hit into place, instead of swapping the 112-byte hits themselves (their sort had
 /// been a tenth of a preview frame). Equal entries keep the gathering order.
 #[derive(Debug, Default)]
 pub(super) struct HitSort {
@@ -86,7 +86,7 @@ pub(super) struct OriginCache {
 /// bits — are the same as over the whole list. A sample behind the last one starts over.
 #[derive(Debug, Default)]
 pub(super) struct ActiveHits {
-    /// Indices into the ray's list (copying the hits themselves, 144 bytes each, had been a
+    /// Indices into the ray's list (copying the hits themselves, 112 bytes each, had been a
     /// fifth of a preview frame).
     pub(super) list: Vec<u32>,
     /// Next hit of the ray's list to enter.
@@ -173,19 +173,16 @@ impl BlobMedium {
             let d = m * ray.dir;
             if let Some((t0, t1)) = ray_ellipsoid(o, d) {
                 let no = rel.map_or_else(|| origin.noise[j], |rel| self.noise_at(i, rel));
-                hits.push(Hit {
-                    blob: self.index[i],
-                    t0,
-                    t1,
-                    b2: self.b2[i],
-                    a_t: self.unit_from_world_t[i],
-                    feature: self.feature[i],
-                    half_min_support: self.half_min_support[i],
-                    o,
-                    d,
-                    no,
-                    nd: self.noise_from_world[i] * ray.dir,
-                });
+                hits.push(Hit::new(
+                    self.index[i],
+                    (t0, t1),
+                    self.b2[i],
+                    self.feature[i],
+                    self.half_min_support[i],
+                    self.unit_from_world_t[i],
+                    (o, d),
+                    (no, self.noise_from_world[i] * ray.dir),
+                ));
             }
         }
         sort.sort(hits);
@@ -296,7 +293,7 @@ impl Medium for BlobMedium {
         let active = s.active.at(&s.hits, t);
         let (mut best, mut label) = (0.0f32, crate::render::output::cryptomatte::NO_MATTE);
         for h in active.iter().map(|&i| &s.hits[i as usize]) {
-            let u = (h.o + h.d * t).length_squared();
+            let u = h.support_radius2(t);
             if u < 1.0 {
                 let f = h.b2 * (1.0 - u) * (1.0 - u);
                 if f > best {
