@@ -115,11 +115,18 @@ impl Hit {
         }
     }
 
-    /// `|q(t)|²`, the squared unit-support radius at `t` (the support is `< 1`).
+    /// `(t − t_m, |q(t)|²)`: the offset from the closest point and the squared unit-support
+    /// radius at `t` (the support is `< 1`).
     #[inline(always)]
-    pub(crate) fn support_radius2(&self, t: f32) -> f32 {
+    pub(crate) fn offset_and_radius2(&self, t: f32) -> (f32, f32) {
         let s = t - self.mid;
-        self.u_curve * (s * s) + self.u_min
+        (s, self.u_curve * (s * s) + self.u_min)
+    }
+
+    /// `Aᵀq` at offset `s = t − t_m` (the field's gradient is `−4B²(1 − |q|²)` times it).
+    #[inline(always)]
+    pub(crate) fn a_t_q(&self, s: f32) -> Vec3A {
+        self.grad_dir * s + self.grad_mid
     }
 }
 
@@ -273,12 +280,11 @@ pub(crate) fn density(p: &DensityParams, hits: &[Hit], order: &[u32], t: f32) ->
         if t > h.t1 {
             continue;
         }
-        let s = t - h.mid;
-        let u = h.u_curve * (s * s) + h.u_min;
+        let (s, u) = h.offset_and_radius2(t);
         if u < 1.0 {
             let w = 1.0 - u;
             let f = h.b2 * w * w;
-            grad += (h.grad_dir * s + h.grad_mid) * (h.b2 * w);
+            grad += h.a_t_q(s) * (h.b2 * w);
             g += f;
             // `f` and the reach are finite and ≥ 0: a plain comparison (no NaN handling)
             // gives `max`'s value.
@@ -462,12 +468,9 @@ mod tests {
                 a_t.y_axis.as_dvec3(),
                 a_t.z_axis.as_dvec3(),
             ) * q;
-            let s = t - hit.mid;
-            let g = (hit.grad_dir * s + hit.grad_mid).as_dvec3();
-            assert!(
-                (hit.support_radius2(t) as f64 - u).abs() < 2e-5,
-                "t = {t}: {u}"
-            );
+            let (s, u32) = hit.offset_and_radius2(t);
+            let g = hit.a_t_q(s).as_dvec3();
+            assert!((u32 as f64 - u).abs() < 2e-5, "t = {t}: {u}");
             assert!(
                 (g - grad).length() < 2e-4 * grad.length().max(1.0),
                 "{g} {grad}"

@@ -293,7 +293,7 @@ impl Medium for BlobMedium {
         let active = s.active.at(&s.hits, t);
         let (mut best, mut label) = (0.0f32, crate::render::output::cryptomatte::NO_MATTE);
         for h in active.iter().map(|&i| &s.hits[i as usize]) {
-            let u = h.support_radius2(t);
+            let (_, u) = h.offset_and_radius2(t);
             if u < 1.0 {
                 let f = h.b2 * (1.0 - u) * (1.0 - u);
                 if f > best {
