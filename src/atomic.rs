@@ -3,6 +3,7 @@
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
 /// The temporary path used while writing `target`: hidden, same folder, ends in `.tmp`, and
@@ -58,27 +59,77 @@ pub fn check_writable(dir: &Path) -> io::Result<()> {
 /// temporary file is removed and `target` is left as it was.
 pub fn write_atomically(
     target: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+    body: impl FnOnce(&mut BufWriter<&File>) -> io::Result<()>,
 ) -> io::Result<()> {
     if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
     }
     let tmp = temp_path(target);
+    let file = create_temp(&tmp)?;
     let result = (|| {
-        let mut w = BufWriter::new(File::create(&tmp)?);
+        let mut w = BufWriter::new(&file);
         body(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
+        w.flush()?;
+        drop(w);
         file.sync_all()?;
-        drop(file);
         if let Some(name) = target.file_name() {
             crate::test_hook::stop_at(&format!("before-rename:{}", name.to_string_lossy()));
         }
+        // rename replaces a link at `target` itself, never the file it points to.
         std::fs::rename(&tmp, target)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    // The temporary's lock is released only now, after the rename (see `create_temp`).
+    drop(file);
     result
+}
+
+/// Create the temporary file `tmp`: a new file (never one already there, nor through a
+/// symbolic link planted at its name), locked (`flock`) for as long as it is being written, so
+/// that [`remove_dead_temp`] can tell a temporary whose writer died from one being written.
+fn create_temp(tmp: &Path) -> io::Result<File> {
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(tmp)?;
+    if let Err(e) = file.try_lock() {
+        let _ = std::fs::remove_file(tmp);
+        return Err(match e {
+            std::fs::TryLockError::Error(e) => e,
+            std::fs::TryLockError::WouldBlock => io::Error::other("a new temporary file is locked"),
+        });
+    }
+    Ok(file)
+}
+
+/// True when `name` is a temporary file name of [`temp_path`] (`.<name>.<pid>-<nanos>.tmp`);
+/// returns the name of the file it was to become.
+pub fn temp_target(name: &str) -> Option<&str> {
+    let rest = name.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (target, token) = rest.rsplit_once('.')?;
+    let (pid, nanos) = token.split_once('-')?;
+    let digits = |s: &str| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit());
+    (digits(pid) && digits(nanos) && !target.is_empty()).then_some(target)
+}
+
+/// Remove the temporary file `path` if no process is writing it (its writer was killed: the
+/// lock [`write_atomically`] holds while writing is free). Links and other non-files are left
+/// alone. True when it was removed.
+pub fn remove_dead_temp(path: &Path) -> bool {
+    let Ok(file) = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)
+    else {
+        return false;
+    };
+    if !file.metadata().is_ok_and(|m| m.is_file()) || file.try_lock().is_err() {
+        return false;
+    }
+    std::fs::remove_file(path).is_ok()
 }
 
 /// [`write_atomically`] for a byte buffer already in memory.

@@ -532,6 +532,7 @@ impl Scene {
             output,
             preview,
             force,
+            clean: false,
             dump_blobs,
             stats: false,
             passes,

@@ -25,6 +25,10 @@ pub struct Args {
     /// Re-render frames whose files already exist.
     #[arg(long)]
     pub force: bool,
+    /// Remove the frames' files of formats this run does not write (left out of --formats or
+    /// taken out of the scene's output.formats); without it they are kept, and reported.
+    #[arg(long)]
+    pub clean: bool,
     /// Also write each frame's blobs as <name>_0001.blobs.ron.
     #[arg(long)]
     pub dump_blobs: bool,
@@ -38,8 +42,8 @@ pub struct Args {
     pub passes: bool,
     /// Render only the window X0,Y0,X1,Y1 of each frame (pixels of the frame as rendered, the
     /// preview's with --preview; X1 and Y1 exclusive): an EXR with the full frame as display
-    /// window and the region as data window, a full-size PNG transparent outside it. A later
-    /// full render re-renders these frames.
+    /// window and the region as data window, a full-size PNG transparent outside it. Written
+    /// as NAME_0001.region.exr (and .png) beside the frames, never over them.
     #[arg(long, value_name = "X0,Y0,X1,Y1")]
     pub region: Option<String>,
     /// Print the wall time of each stage at the end.
@@ -92,6 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         output: args.output,
         preview: args.preview,
         force: args.force,
+        clean: args.clean,
         dump_blobs: args.dump_blobs,
         stats: args.stats,
         passes: args.passes,
@@ -152,6 +157,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!(
             "{n} of the rendered frames were out of date: {}",
             why.join("; ")
+        );
+    }
+    let others = &report.others;
+    if others.current + others.not_current > 0 {
+        eprintln!(
+            "kept {} files of formats this run does not write ({}){}; --clean removes them",
+            others.current + others.not_current,
+            others.kinds.join(", "),
+            if others.not_current > 0 {
+                format!(
+                    ", {} of them no longer current (made before the scene changed)",
+                    others.not_current
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
+    if others.removed > 0 {
+        eprintln!(
+            "removed {} files of formats this run does not write ({})",
+            others.removed,
+            others.kinds.join(", ")
         );
     }
     if let Some(p) = &report.stats {

@@ -259,6 +259,23 @@ impl Format {
     pub fn is_grid(self) -> bool {
         matches!(self, Format::Vdb | Format::Vol)
     }
+
+    /// Check a list of formats to write: at least one, none twice (two writers of one file
+    /// would race and leave the frame without its manifest).
+    pub fn check_list(formats: &[Format]) -> Result<(), String> {
+        if formats.is_empty() {
+            return Err("list at least one format".to_string());
+        }
+        for (i, f) in formats.iter().enumerate() {
+            if formats[..i].contains(f) {
+                return Err(format!(
+                    "{} is listed twice; list each format once",
+                    f.extension()
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Where and how frames are written.
@@ -441,12 +458,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     validate_cloud(&bad, &s.cloud)?;
     crate::render::memory::check_size(s.shot.width, s.shot.height, s.quality)
         .map_err(|message| bad("shot", message))?;
-    if s.output.formats.is_empty() {
-        return Err(bad(
-            "output.formats",
-            "list at least one format".to_string(),
-        ));
-    }
+    Format::check_list(&s.output.formats).map_err(|message| bad("output.formats", message))?;
     if let Some(v) = s.output.voxel
         && !(v.is_finite() && v > 0.0)
     {

@@ -40,20 +40,22 @@ pub fn frame_stem(shot: &Shot, frame: u32) -> String {
 }
 
 /// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
-/// 512), checked against the target's box before any frame is rendered; 0 when the scene
-/// writes no grid.
+/// 512), checked against the target's box before any frame is rendered when the scene writes
+/// a grid. (Also known when it writes none, so a grid kept from another run can be told
+/// current or not.)
 pub fn grid_voxel(shot: &Shot) -> Result<f64, SceneError> {
     let scene = shot.scene();
-    if !scene.file.output.formats.iter().any(|f| f.is_grid()) {
-        return Ok(0.0);
-    }
     let bounds = shot.prepared()?.bounds;
     let voxel = crate::export::voxel_size(scene.file.output.voxel, &bounds);
-    crate::export::check_voxel_budget(voxel, &bounds).map_err(|message| SceneError::Invalid {
-        path: scene.path.clone(),
-        field: "output.voxel".into(),
-        message,
-    })?;
+    if scene.file.output.formats.iter().any(|f| f.is_grid()) {
+        crate::export::check_voxel_budget(voxel, &bounds).map_err(|message| {
+            SceneError::Invalid {
+                path: scene.path.clone(),
+                field: "output.voxel".into(),
+                message,
+            }
+        })?;
+    }
     Ok(voxel)
 }
 
@@ -71,11 +73,13 @@ pub(crate) struct FrameOutput<'a> {
     pub check: &'a FrameCheck,
 }
 
-/// Write one frame's files atomically, the formats in parallel if `parallel`: first the old
-/// manifest is removed (so an interrupted write never leaves old and new files under one
-/// manifest), then the files `out.check` says to write, then the stale files of formats no
-/// longer asked for are removed, and the manifest listing every file is written last. The
-/// density grid is sampled once, if a grid file is written.
+/// Write one frame's files atomically, the formats in parallel if `parallel`: first the
+/// manifest is replaced by one listing only the files this write leaves alone (removed when
+/// there are none), so an interrupted write never leaves old and new files under one
+/// manifest; then the files `out.check` says to write; then the other formats' files are
+/// removed if the run cleans (`--clean`; otherwise they are kept); and the manifest listing
+/// every file with its content hash is written last. The density grid is sampled once, if a
+/// grid file is written.
 pub(crate) fn write_frame(
     shot: &Shot,
     frame: u32,
@@ -96,10 +100,31 @@ pub(crate) fn write_frame(
         move |source| SceneError::Io { path, source }
     };
     let manifest = provenance::manifest_path(shot, frame);
-    match std::fs::remove_file(&manifest) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(io(&manifest)(e)),
+    // The files this write does not touch: the wanted ones already up to date, and the other
+    // formats' files it keeps.
+    let untouched: Vec<ListedFile> = check
+        .verified
+        .iter()
+        .flatten()
+        .cloned()
+        .chain(
+            check
+                .others
+                .iter()
+                .filter(|o| !o.remove)
+                .map(|o| o.listed.clone()),
+        )
+        .collect();
+    if untouched.is_empty() {
+        match std::fs::remove_file(&manifest) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(io(&manifest)(e)),
+        }
+    } else {
+        let record = Manifest::new(frame, inputs, untouched.clone());
+        crate::atomic::write_bytes_atomically(&manifest, record.to_text().as_bytes())
+            .map_err(io(&manifest))?;
     }
     let todo: Vec<&WantedFile> = check
         .wanted
@@ -175,15 +200,21 @@ pub(crate) fn write_frame(
         todo.iter().try_for_each(write)?;
     }
     crate::test_hook::stop_at(&format!("after-files:{frame}"));
-    for path in &check.stale {
-        match std::fs::remove_file(path) {
+    // Only files the manifest listed under the frame's own names (checked when it was read),
+    // and only when asked: a link there is removed itself, never what it points to.
+    for other in check.others.iter().filter(|o| o.remove) {
+        match std::fs::remove_file(&other.path) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(io(path)(e)),
+            Err(e) => return Err(io(&other.path)(e)),
         }
     }
-    let mut listed = Vec::with_capacity(check.wanted.len());
-    for w in &check.wanted {
+    let mut listed = Vec::with_capacity(check.wanted.len() + untouched.len());
+    for (w, verified) in check.wanted.iter().zip(&check.verified) {
+        if let Some(entry) = verified {
+            listed.push(entry.clone());
+            continue;
+        }
         let bytes = std::fs::metadata(&w.path).map_err(io(&w.path))?.len();
         listed.push(ListedFile {
             name: w
@@ -194,8 +225,16 @@ pub(crate) fn write_frame(
             kind: w.kind.key().to_string(),
             hash: provenance::hash_text(w.hash),
             bytes,
+            blake3: provenance::content_hash(&w.path).map_err(io(&w.path))?,
         });
     }
+    listed.extend(
+        check
+            .others
+            .iter()
+            .filter(|o| !o.remove)
+            .map(|o| o.listed.clone()),
+    );
     let record = Manifest::new(frame, inputs, listed);
     crate::atomic::write_bytes_atomically(&manifest, record.to_text().as_bytes())
         .map_err(io(&manifest))?;

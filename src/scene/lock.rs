@@ -9,13 +9,16 @@
 //! process that locked a file just removed finds its path gone (or another file there) and
 //! locks again, so a removed lock file is never held.
 //!
-//! A frame whose lock can be taken has no writer: any temporary file of it left in the folder
-//! (`.<stem>.exr.<pid>-<n>.tmp`) belongs to a process that died, and [`remove_stale_temps`]
-//! deletes it.
+//! The lock file is opened without following links (`O_NOFOLLOW`): a link planted at its name
+//! is refused, never written through.
+//!
+//! Temporary files (`.<file>.<pid>-<n>.tmp`, [`crate::atomic`]) are locked by their writer
+//! while written, so a temporary whose lock can be taken belongs to a process that died, and
+//! [`remove_stale_temps`] deletes it: the frames', the statistics' and the shared caches'.
 
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Write};
-use std::os::unix::fs::MetadataExt;
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 
 use super::SceneError;
@@ -57,13 +60,21 @@ impl FrameLock {
     /// Lock `path` without waiting.
     fn try_acquire(path: &Path, scene: &Path) -> Result<Option<FrameLock>, Refused> {
         for _ in 0..100 {
+            // Never through a link: a link planted at the lock's name would have the holder's
+            // line written into the file it points to.
             let mut file = OpenOptions::new()
                 .read(true)
                 .write(true)
                 .create(true)
                 .truncate(false)
+                .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
                 .open(path)
-                .map_err(Refused::Io)?;
+                .map_err(|e| Refused::Io(not_followed(e)))?;
+            if !file.metadata().map_err(Refused::Io)?.is_file() {
+                return Err(Refused::Io(std::io::Error::other(
+                    "is not a regular file; remove it (nephele writes its frame locks there)",
+                )));
+            }
             match file.try_lock() {
                 Ok(()) => {}
                 Err(std::fs::TryLockError::WouldBlock) => {
@@ -79,7 +90,7 @@ impl FrameLock {
                 Err(std::fs::TryLockError::Error(e)) => return Err(Refused::Io(e)),
             }
             // The file may have been removed (released) between our open and our lock.
-            let same = match (file.metadata(), std::fs::metadata(path)) {
+            let same = match (file.metadata(), std::fs::symlink_metadata(path)) {
                 (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
                 _ => false,
             };
@@ -113,6 +124,18 @@ impl Drop for FrameLock {
     }
 }
 
+/// The error of opening a link with `O_NOFOLLOW` (`ELOOP`), said plainly.
+fn not_followed(e: std::io::Error) -> std::io::Error {
+    if e.raw_os_error() == Some(libc::ELOOP) {
+        std::io::Error::other(
+            "is a symbolic link; nephele does not follow links out of the frames folder \
+             (remove it)",
+        )
+    } else {
+        e
+    }
+}
+
 /// `.<stem>.lock` in `dir`.
 pub fn lock_path(dir: &Path, stem: &str) -> PathBuf {
     dir.join(format!(".{stem}.lock"))
@@ -128,59 +151,59 @@ fn host_name() -> String {
         .unwrap_or_else(|| "this host".into())
 }
 
-/// The frame stem of a temporary file name `.<stem>.<ext>.<token>.tmp` of a frame of shot
-/// `name` (`<stem>` = `<name>_<digits>` or `<name>_<digits>.region`), if it is one.
-pub fn temp_stem<'a>(file_name: &'a str, name: &str) -> Option<&'a str> {
-    let rest = file_name.strip_prefix('.')?.strip_suffix(".tmp")?;
-    // Strip the token (`<pid>-<nanos>`).
-    let (body, token) = rest.rsplit_once('.')?;
-    if token.is_empty() || !token.chars().all(|c| c.is_ascii_digit() || c == '-') {
-        return None;
+/// True when `target` (the file a temporary was to become, [`crate::atomic::temp_target`]) is
+/// one of the files a render of shot `name` writes: a frame file or manifest
+/// (`<name>_<digits>[.region].<ext>`), its statistics (`<name>_stats.csv`), or a cache shared
+/// by the shots of the folder (`target-<hash>.ron`, `blend-<key>.ron`).
+pub fn is_shot_file(target: &str, name: &str) -> bool {
+    if target == format!("{name}_stats.csv") {
+        return true;
     }
-    let ext = FRAME_FILES
+    let hex = |s: &str| !s.is_empty() && s.chars().all(|c| c.is_ascii_hexdigit());
+    for prefix in ["target-", "blend-"] {
+        if let Some(key) = target.strip_prefix(prefix).and_then(|t| t.strip_suffix(".ron"))
+            && hex(key)
+        {
+            return true;
+        }
+    }
+    let Some(ext) = FRAME_FILES
         .iter()
-        .find(|e| body.ends_with(&format!(".{e}")))?;
-    let stem = &body[..body.len() - ext.len() - 1];
-    let number = stem.strip_prefix(name)?.strip_prefix('_')?;
+        .find(|e| target.ends_with(&format!(".{e}")))
+    else {
+        return false;
+    };
+    let stem = &target[..target.len() - ext.len() - 1];
+    let Some(number) = stem.strip_prefix(name).and_then(|s| s.strip_prefix('_')) else {
+        return false;
+    };
     let digits = number.strip_suffix(".region").unwrap_or(number);
-    (!digits.is_empty() && digits.chars().all(|c| c.is_ascii_digit())).then_some(stem)
+    !digits.is_empty() && digits.chars().all(|c| c.is_ascii_digit())
 }
 
-/// Remove the temporary files of shot `name`'s frames in `dir` whose frame no process holds
-/// (left by a process that was killed); returns how many were removed. Frames locked by a
-/// running render keep theirs.
-pub fn remove_stale_temps(dir: &Path, name: &str, scene: &Path) -> Result<usize, SceneError> {
-    let entries = match std::fs::read_dir(dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
-        Err(source) => {
-            return Err(SceneError::Io {
-                path: dir.to_path_buf(),
-                source,
-            });
-        }
-    };
-    let mut temps: Vec<(String, PathBuf)> = entries
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            let file = e.file_name().to_string_lossy().into_owned();
-            temp_stem(&file, name).map(|s| (s.to_string(), e.path()))
-        })
-        .collect();
-    temps.sort();
+/// Remove the temporary files of shot `name` in `dirs` (its frames folder and its cache
+/// folder) whose writer was killed ([`crate::atomic::remove_dead_temp`]: a temporary being
+/// written is locked by its writer); returns how many were removed.
+pub fn remove_stale_temps(dirs: &[&Path], name: &str) -> Result<usize, SceneError> {
     let mut removed = 0;
-    let mut i = 0;
-    while i < temps.len() {
-        let stem = temps[i].0.clone();
-        let group = temps[i..].iter().take_while(|(s, _)| *s == stem).count();
-        if let Ok(Some(_lock)) = FrameLock::try_acquire(&lock_path(dir, &stem), scene) {
-            for (_, path) in &temps[i..i + group] {
-                if std::fs::remove_file(path).is_ok() {
-                    removed += 1;
-                }
+    for dir in dirs {
+        let entries = match std::fs::read_dir(dir) {
+            Ok(e) => e,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(source) => {
+                return Err(SceneError::Io {
+                    path: dir.to_path_buf(),
+                    source,
+                });
+            }
+        };
+        for entry in entries.filter_map(|e| e.ok()) {
+            let file = entry.file_name().to_string_lossy().into_owned();
+            let ours = crate::atomic::temp_target(&file).is_some_and(|t| is_shot_file(t, name));
+            if ours && crate::atomic::remove_dead_temp(&entry.path()) {
+                removed += 1;
             }
         }
-        i += group;
     }
     Ok(removed)
 }
@@ -190,24 +213,29 @@ mod tests {
     use super::*;
 
     #[test]
-    fn temp_names_are_recognised_by_frame() {
-        assert_eq!(
-            temp_stem(".duck_0002.vdb.1234-5678.tmp", "duck"),
-            Some("duck_0002")
-        );
-        assert_eq!(
-            temp_stem(".duck_0002.region.exr.1-2.tmp", "duck"),
-            Some("duck_0002.region")
-        );
-        assert_eq!(
-            temp_stem(".duck_0002.manifest.json.1-2.tmp", "duck"),
-            Some("duck_0002")
-        );
-        // Another shot's, the fit cache's, or not a temporary at all.
-        assert_eq!(temp_stem(".goose_0002.exr.1-2.tmp", "duck"), None);
-        assert_eq!(temp_stem(".duck.fit.ron.1-2.tmp", "duck"), None);
-        assert_eq!(temp_stem("duck_0002.exr", "duck"), None);
-        assert_eq!(temp_stem(".duck_0002.exr.x.tmp", "duck"), None);
+    fn temp_names_are_recognised_by_shot() {
+        let ours = |f: &str| crate::atomic::temp_target(f).is_some_and(|t| is_shot_file(t, "duck"));
+        for f in [
+            ".duck_0002.vdb.1234-5678.tmp",
+            ".duck_0002.region.exr.1-2.tmp",
+            ".duck_0002.manifest.json.1-2.tmp",
+            ".duck_stats.csv.1-2.tmp",
+            ".target-00ff12.ron.1-2.tmp",
+            ".blend-00ff12.ron.1-2.tmp",
+        ] {
+            assert!(ours(f), "{f}");
+        }
+        // Another shot's, not a temporary at all, or not nephele's token.
+        for f in [
+            ".goose_0002.exr.1-2.tmp",
+            ".duck.fit.ron.1-2.tmp",
+            "duck_0002.exr",
+            ".duck_0002.exr.x.tmp",
+            ".duck_0002.exr.1.tmp",
+            ".target-zz.ron.1-2.tmp",
+        ] {
+            assert!(!ours(f), "{f}");
+        }
     }
 
     #[test]
@@ -226,12 +254,17 @@ mod tests {
         drop(held);
         assert!(!lock_path(&dir, "s_0001").exists());
         let again = FrameLock::acquire(&dir, "s_0001", scene).unwrap();
-        // A stale temporary of an unlocked frame goes; one of a locked frame stays.
+        // A temporary whose writer died goes; one being written (locked by its writer) stays.
         std::fs::write(dir.join(".s_0002.png.99-1.tmp"), b"x").unwrap();
-        std::fs::write(dir.join(".s_0001.png.99-1.tmp"), b"x").unwrap();
-        assert_eq!(remove_stale_temps(&dir, "s", scene).unwrap(), 1);
-        assert!(dir.join(".s_0001.png.99-1.tmp").exists());
+        let live = dir.join(".s_0001.png.99-1.tmp");
+        let writer = File::create(&live).unwrap();
+        writer.lock().unwrap();
+        assert_eq!(remove_stale_temps(&[&dir], "s").unwrap(), 1);
+        assert!(live.exists());
         assert!(!dir.join(".s_0002.png.99-1.tmp").exists());
+        drop(writer);
+        assert_eq!(remove_stale_temps(&[&dir], "s").unwrap(), 1);
+        assert!(!live.exists());
         drop(again);
         std::fs::remove_dir_all(&dir).unwrap();
     }

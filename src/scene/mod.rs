@@ -106,7 +106,8 @@ pub enum SceneError {
     },
     /// Another process is writing the frame (its lock file is held).
     #[error(
-        "{path}: this frame is being written by another {holder}; wait for it to finish, or give          this render another output.name or --output"
+        "{path}: this frame is being written by another {holder}; wait for it to finish, or give \
+         this render another output.name or --output"
     )]
     Locked {
         /// The frame's lock file.

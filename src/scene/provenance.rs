@@ -267,7 +267,15 @@ pub fn frame_inputs(
     );
     // A VDB also holds the velocity grid, made from the blobs' motions about the frame's time
     // (in units per second, so the frame rate counts too), and UUIDs from the seed and frame.
-    let motions = if file.output.formats.contains(&Format::Vdb) {
+    // Also when the run writes no VDB but the frame has one (kept from another run), so that
+    // it can be told whether that VDB is still current.
+    let frame = shot.number(k);
+    let vdb = FileKind::Format(Format::Vdb);
+    let lists_vdb = || {
+        read_manifest(&manifest_path(shot, frame))
+            .is_ok_and(|m| m.files.iter().any(|f| f.kind == vdb.key()))
+    };
+    let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb() {
         shot.prepared().ok().map(|prep| {
             let plan = &prep.plan;
             let t = plan.timeline().time(k as usize);
@@ -278,7 +286,6 @@ pub fn frame_inputs(
     } else {
         None
     };
-    let frame = shot.number(k);
     hashes.insert(
         Component::Grid,
         hash(&|e| {
@@ -318,6 +325,11 @@ pub struct ListedFile {
     pub hash: String,
     /// Its size in bytes.
     pub bytes: u64,
+    /// BLAKE3 of its bytes (64 hex digits, [`content_hash`]), checked on resume: a file whose
+    /// bytes changed since it was written is never counted done. Empty in the manifests of
+    /// nephele before content hashes (their frames are rendered again).
+    #[serde(default)]
+    pub blake3: String,
 }
 
 /// What a frame's manifest records.
@@ -371,6 +383,10 @@ impl Manifest {
         e.len(self.files.len());
         for f in &self.files {
             e.str(&f.name).str(&f.kind).str(&f.hash).put(&f.bytes);
+            // Manifests before content hashes had none; their check stays as it was written.
+            if !f.blake3.is_empty() {
+                e.str(&f.blake3);
+            }
         }
         e.finish()
     }
@@ -395,9 +411,19 @@ pub enum ManifestProblem {
 
 /// Read and check the manifest at `path`.
 pub fn read_manifest(path: &Path) -> Result<Manifest, ManifestProblem> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
+    match std::fs::symlink_metadata(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(ManifestProblem::Missing),
+        Err(e) => return Err(ManifestProblem::Unreadable(e.to_string())),
+        Ok(m) if m.file_type().is_symlink() => {
+            return Err(ManifestProblem::Unreadable(
+                "it is a symbolic link (nephele never follows links out of the frames folder)"
+                    .into(),
+            ));
+        }
+        Ok(_) => {}
+    }
+    let text = match crate::input::read_to_string(path, crate::input::Limit::Own) {
+        Ok(t) => t,
         Err(e) => return Err(ManifestProblem::Unreadable(e.to_string())),
     };
     if text.trim().is_empty() {
@@ -458,9 +484,25 @@ pub struct FrameCheck {
     pub wanted: Vec<WantedFile>,
     /// Which of `wanted` must be written (the others are on disk and up to date).
     pub write: Vec<bool>,
-    /// Files the last manifest lists that the scene no longer asks for (removed when the frame
-    /// is written).
-    pub stale: Vec<PathBuf>,
+    /// For each of `wanted` that is up to date, its entry in the manifest (listed again as it
+    /// is when the frame's manifest is rewritten).
+    pub verified: Vec<Option<ListedFile>>,
+    /// Files the manifest lists that this run does not ask for (another `--formats`, a format
+    /// taken out of the scene, the blob dump): kept and listed again, unless `clean`.
+    pub others: Vec<OtherFile>,
+}
+
+/// A file a frame's manifest lists that the run does not ask for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OtherFile {
+    /// Its manifest entry (its name checked to be one nephele writes for the frame).
+    pub listed: ListedFile,
+    /// Where it is.
+    pub path: PathBuf,
+    /// True when its hash is the one the scene would give it now (made from the same inputs).
+    pub current: bool,
+    /// True when it is to be removed (`--clean`); otherwise it is kept and listed again.
+    pub remove: bool,
 }
 
 impl FrameCheck {
@@ -474,7 +516,7 @@ impl FrameCheck {
 
     /// True when nothing needs doing at all, the manifest included.
     pub fn is_done(&self) -> bool {
-        self.status == FrameStatus::UpToDate
+        self.status == FrameStatus::UpToDate && !self.others.iter().any(|o| o.remove)
     }
 }
 
@@ -511,17 +553,27 @@ pub fn file_name(stem: &str, kind: FileKind) -> String {
 }
 
 /// Check frame number `frame` of `shot` on disk against `inputs` (see the module doc); with
-/// `force` every wanted file is written.
-pub fn check_frame(shot: &Shot, frame: u32, inputs: &FrameInputs, force: bool) -> FrameCheck {
+/// `force` every wanted file is written; with `clean` the files the manifest lists that the run
+/// does not ask for are to be removed.
+pub fn check_frame(
+    shot: &Shot,
+    frame: u32,
+    inputs: &FrameInputs,
+    force: bool,
+    clean: bool,
+) -> FrameCheck {
     let wanted = wanted_files(shot, frame, inputs);
-    let manifest = read_manifest(&manifest_path(shot, frame));
-    let present = wanted.iter().filter(|w| w.path.is_file()).count();
+    let stem = super::frame_files::frame_stem(shot, frame);
+    let manifest = read_manifest(&manifest_path(shot, frame))
+        .and_then(|m| check_names(&m, &stem).map(|()| m));
+    let present = wanted.iter().filter(|w| is_plain_file(&w.path)).count();
     let all = |status| FrameCheck {
         frame,
         status,
         write: vec![true; wanted.len()],
+        verified: vec![None; wanted.len()],
         wanted: wanted.clone(),
-        stale: Vec::new(),
+        others: Vec::new(),
     };
     let m = match manifest {
         Ok(m) => m,
@@ -548,54 +600,56 @@ pub fn check_frame(shot: &Shot, frame: u32, inputs: &FrameInputs, force: bool) -
         )));
     }
     let dir = shot.dir();
-    let stale: Vec<PathBuf> = m
+    let others: Vec<OtherFile> = m
         .files
         .iter()
         .filter(|f| !wanted.iter().any(|w| file_name_of(&w.path) == f.name))
-        .map(|f| dir.join(&f.name))
+        .map(|f| OtherFile {
+            listed: f.clone(),
+            path: dir.join(&f.name),
+            current: FileKind::from_key(&f.kind)
+                .is_some_and(|k| f.hash == hash_text(inputs.file_hash(k))),
+            remove: clean,
+        })
         .collect();
     let mut write = Vec::with_capacity(wanted.len());
-    let (mut added, mut changed, mut replaced, mut missing) = (vec![], vec![], false, false);
+    let mut verified = Vec::with_capacity(wanted.len());
+    let mut why = Reasons::default();
     for w in &wanted {
         let name = file_name_of(&w.path);
         let listed = m.files.iter().find(|f| f.name == name);
         let ok = match listed {
+            None if is_plain_file(&w.path) => {
+                why.interrupted = true;
+                false
+            }
             None => {
-                added.push(w.kind.key());
+                why.added.push(w.kind.key());
                 false
             }
             Some(f) if f.hash != hash_text(w.hash) => {
-                changed.extend(changed_components(&m, inputs, w.kind));
+                why.changed.extend(changed_components(&m, inputs, w.kind));
                 false
             }
-            Some(f) => match std::fs::metadata(&w.path) {
-                Err(_) => {
-                    missing = true;
+            Some(f) => match verify_file(&w.path, w.kind, f) {
+                Ok(()) => true,
+                Err(FileProblem::Missing) => {
+                    why.missing = true;
                     false
                 }
-                Ok(meta) if meta.len() != f.bytes => {
-                    replaced = true;
+                Err(FileProblem::Replaced) => {
+                    why.replaced = true;
                     false
                 }
-                Ok(_) if w.kind == FileKind::Format(Format::Exr) => {
-                    let own = exr_hash(&w.path);
-                    if own.as_deref() != Some(f.hash.as_str()) {
-                        replaced = true;
-                    }
-                    own.as_deref() == Some(f.hash.as_str())
+                Err(FileProblem::Unhashed) => {
+                    why.unhashed = true;
+                    false
                 }
-                Ok(_) => true,
             },
         };
         write.push(force || !ok);
+        verified.push((ok && !force).then(|| listed.cloned()).flatten());
     }
-    let removed: Vec<&str> = m
-        .files
-        .iter()
-        .filter(|f| stale.iter().any(|p| file_name_of(p) == f.name))
-        .map(|f| f.kind.as_str())
-        .filter(|k| FileKind::from_key(k).is_some())
-        .collect();
     let status = if force {
         FrameStatus::New
     } else if m.render_version != RENDER_VERSION {
@@ -604,43 +658,139 @@ pub fn check_frame(shot: &Shot, frame: u32, inputs: &FrameInputs, force: bool) -
             m.render_version
         ))
     } else {
-        let mut why = Vec::new();
-        if !changed.is_empty() {
-            changed.sort();
-            changed.dedup();
-            let labels: Vec<&str> = changed.iter().map(|c| c.label()).collect();
-            why.push(format!("changed: {}", labels.join(", ")));
-        }
-        if !added.is_empty() || !removed.is_empty() {
-            let mut f: Vec<String> = added.iter().map(|k| format!("+{k}")).collect();
-            f.extend(removed.iter().map(|k| format!("-{k}")));
-            why.push(format!("formats changed: {}", f.join(" ")));
-        }
-        if missing {
-            why.push("files missing".into());
-        }
-        if replaced {
-            why.push("files replaced since their manifest".into());
-        }
-        if why.is_empty() {
-            FrameStatus::UpToDate
-        } else {
-            FrameStatus::OutOfDate(why.join("; "))
-        }
+        why.status()
     };
     // Another render version: every file is redone, whatever its hash says.
-    let write = if m.render_version != RENDER_VERSION {
-        vec![true; wanted.len()]
+    let (write, verified) = if m.render_version != RENDER_VERSION {
+        (vec![true; wanted.len()], vec![None; wanted.len()])
     } else {
-        write
+        (write, verified)
     };
     FrameCheck {
         frame,
         status,
         wanted,
         write,
-        stale,
+        verified,
+        others,
     }
+}
+
+/// Why a frame on disk is not up to date, gathered file by file.
+#[derive(Default)]
+struct Reasons {
+    changed: Vec<Component>,
+    added: Vec<&'static str>,
+    interrupted: bool,
+    missing: bool,
+    replaced: bool,
+    unhashed: bool,
+}
+
+impl Reasons {
+    fn status(mut self) -> FrameStatus {
+        let mut why = Vec::new();
+        if !self.changed.is_empty() {
+            self.changed.sort();
+            self.changed.dedup();
+            let labels: Vec<&str> = self.changed.iter().map(|c| c.label()).collect();
+            why.push(format!("changed: {}", labels.join(", ")));
+        }
+        if !self.added.is_empty() {
+            let f: Vec<String> = self.added.iter().map(|k| format!("+{k}")).collect();
+            why.push(format!("formats added: {}", f.join(" ")));
+        }
+        if self.interrupted {
+            why.push("interrupted (files without their manifest entry)".into());
+        }
+        if self.missing {
+            why.push("files missing".into());
+        }
+        if self.replaced {
+            why.push("files changed since their manifest".into());
+        }
+        if self.unhashed {
+            why.push("a manifest without content hashes (nephele before them)".into());
+        }
+        if why.is_empty() {
+            FrameStatus::UpToDate
+        } else {
+            FrameStatus::OutOfDate(why.join("; "))
+        }
+    }
+}
+
+/// Every file a manifest lists must be one nephele writes for that frame (`<stem>.exr`, …,
+/// `<stem>.blobs.ron`, by its kind), listed once: a name that is absolute, holds `..` or a
+/// separator, or is any other file, makes the whole manifest untrusted, so nothing it lists is
+/// ever removed or counted done.
+fn check_names(m: &Manifest, stem: &str) -> Result<(), ManifestProblem> {
+    for (i, f) in m.files.iter().enumerate() {
+        let expected = FileKind::from_key(&f.kind).map(|k| file_name(stem, k));
+        if expected.as_deref() != Some(f.name.as_str()) {
+            return Err(ManifestProblem::Unreadable(format!(
+                "it lists {:?} ({:?}), not a file nephele writes for this frame; nothing it \
+                 lists is touched",
+                f.name, f.kind
+            )));
+        }
+        if m.files[..i].iter().any(|g| g.name == f.name) {
+            return Err(ManifestProblem::Unreadable(format!(
+                "it lists {:?} twice",
+                f.name
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Why a listed file on disk is not the one its manifest describes.
+enum FileProblem {
+    Missing,
+    Replaced,
+    Unhashed,
+}
+
+/// Check the file at `path` against its manifest entry `f`: a regular file (not a link) of
+/// the listed size, (EXR) carrying its hash in its header, whose bytes have the listed BLAKE3.
+fn verify_file(path: &Path, kind: FileKind, f: &ListedFile) -> Result<(), FileProblem> {
+    let meta = std::fs::symlink_metadata(path).map_err(|_| FileProblem::Missing)?;
+    if !meta.is_file() || meta.len() != f.bytes {
+        return Err(FileProblem::Replaced);
+    }
+    if kind == FileKind::Format(Format::Exr)
+        && exr_hash(path).as_deref() != Some(f.hash.as_str())
+    {
+        return Err(FileProblem::Replaced);
+    }
+    if f.blake3.is_empty() {
+        return Err(FileProblem::Unhashed);
+    }
+    match content_hash(path) {
+        Ok(h) if h == f.blake3 => Ok(()),
+        _ => Err(FileProblem::Replaced),
+    }
+}
+
+/// BLAKE3 of the bytes of the regular file at `path` (not followed if it is a link), as 64
+/// lowercase hex digits.
+pub fn content_hash(path: &Path) -> std::io::Result<String> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(std::io::Error::other("not a regular file"));
+    }
+    let mut hasher = blake3::Hasher::new();
+    hasher.update_reader(file)?;
+    Ok(hasher.finalize().to_hex().to_string())
+}
+
+/// True when `path` is a regular file itself (a link is not).
+fn is_plain_file(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file())
 }
 
 /// The components whose hashes differ between manifest `m` and `inputs`, among those a file

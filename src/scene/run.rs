@@ -45,6 +45,39 @@ pub struct ShotReport {
     pub timings: Timings,
     /// The statistics file, when asked for.
     pub stats: Option<std::path::PathBuf>,
+    /// Files of the frames that this run did not ask for (other formats), kept or removed.
+    pub others: OtherFiles,
+}
+
+/// The files of a shot's frames that a run did not ask for: formats left out of `--formats`
+/// or taken out of the scene, kept beside the frames (nothing nephele wrote is deleted unless
+/// the run cleans, `--clean`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct OtherFiles {
+    /// Kept, made from the scene's inputs as they are now.
+    pub current: u32,
+    /// Kept, but made from other inputs (the scene changed since): no longer current.
+    pub not_current: u32,
+    /// Removed (`--clean`).
+    pub removed: u32,
+    /// Their kinds (`exr`, `png`, …), in the order first met.
+    pub kinds: Vec<String>,
+}
+
+impl OtherFiles {
+    /// Count a frame's other files.
+    fn count(&mut self, others: &[provenance::OtherFile]) {
+        for o in others {
+            match (o.remove, o.current) {
+                (true, _) => self.removed += 1,
+                (false, true) => self.current += 1,
+                (false, false) => self.not_current += 1,
+            }
+            if !self.kinds.contains(&o.listed.kind) {
+                self.kinds.push(o.listed.kind.clone());
+            }
+        }
+    }
 }
 
 /// Open `scene`'s shot with `opts` and [`Shot::run`] it.
@@ -85,6 +118,7 @@ impl Shot {
             target: None,
             timings: Timings::default(),
             stats: None,
+            others: OtherFiles::default(),
         };
         let last = self.number(self.total() - 1);
         // The hashes need every frame's inputs, so the target is loaded (from its cache when
@@ -131,7 +165,9 @@ impl Shot {
                     &frame_files::frame_stem(self, frame),
                     &self.scene().path,
                 )?;
-                let check = provenance::check_frame(self, frame, &inputs, opts.force);
+                let check =
+                    provenance::check_frame(self, frame, &inputs, opts.force, opts.clean);
+                report.others.count(&check.others);
                 let finished = check.is_done();
                 if let FrameStatus::OutOfDate(reason) = &check.status {
                     match report.out_of_date.iter_mut().find(|(r, _)| r == reason) {
@@ -240,10 +276,11 @@ impl Shot {
 }
 
 impl Shot {
-    /// Remove the temporary files that killed renders left in the frames folder (those of
-    /// frames no running render holds; [`super::lock::remove_stale_temps`]); returns how many.
+    /// Remove the temporary files that killed runs left in the frames folder and the cache
+    /// folder (frames, statistics, the fitted target's and the blend path's caches; those no
+    /// running process is writing, [`super::lock::remove_stale_temps`]); returns how many.
     pub fn remove_stale_temps(&self) -> Result<usize, SceneError> {
-        super::lock::remove_stale_temps(self.dir(), &self.scene().name, &self.scene().path)
+        super::lock::remove_stale_temps(&[self.dir(), self.cache_dir()], &self.scene().name)
     }
 
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
@@ -257,7 +294,7 @@ impl Shot {
                 let k = self.index(frame);
                 let (settings, blobs) = (self.settings(k)?, self.blobs(k)?);
                 let inputs = provenance::frame_inputs(self, k, &settings, &blobs, &film, voxel);
-                let check = provenance::check_frame(self, frame, &inputs, false);
+                let check = provenance::check_frame(self, frame, &inputs, false, false);
                 Ok((frame, check.status))
             })
             .collect()

@@ -31,6 +31,9 @@ pub struct RenderOptions {
     pub preview: bool,
     /// Re-render frames whose files already exist.
     pub force: bool,
+    /// Remove the files of the frames that the run does not ask for (formats left out of
+    /// `--formats` or taken out of the scene); without it they are kept and reported.
+    pub clean: bool,
     /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
     pub dump_blobs: bool,
     /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
@@ -80,6 +83,14 @@ impl Shot {
     pub fn open(scene: Scene, options: &RenderOptions) -> Result<Shot, SceneError> {
         let spec = &scene.file.shot;
         let (start, last, total) = (spec.start_frame, spec.last_frame(), spec.frame_count());
+        // Checked again here: a front end's override (`--formats`) bypasses the scene's checks.
+        super::Format::check_list(&scene.file.output.formats).map_err(|message| {
+            SceneError::Invalid {
+                path: scene.path.clone(),
+                field: "output.formats (or --formats)".into(),
+                message,
+            }
+        })?;
         let (selection, field) = match (&options.frames, scene.file.frames) {
             (Some(sel), _) => (sel.clone(), "--frames"),
             (None, Some((a, b))) => (FrameSelection::range(a, b), "frames"),
