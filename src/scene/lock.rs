@@ -161,7 +161,9 @@ pub fn is_shot_file(target: &str, name: &str) -> bool {
     }
     let hex = |s: &str| !s.is_empty() && s.chars().all(|c| c.is_ascii_hexdigit());
     for prefix in ["target-", "blend-"] {
-        if let Some(key) = target.strip_prefix(prefix).and_then(|t| t.strip_suffix(".ron"))
+        if let Some(key) = target
+            .strip_prefix(prefix)
+            .and_then(|t| t.strip_suffix(".ron"))
             && hex(key)
         {
             return true;

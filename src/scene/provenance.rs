@@ -14,17 +14,26 @@
 //! the EXR header, a VDB not on the camera): adding or removing a format, or changing what only
 //! one format depends on, leaves the other files alone. The EXR carries its own hash in its
 //! header (`nephele/hash`); every file is listed in the frame's manifest,
-//! `<name>_<frame>.manifest.json`, with its hash and size.
+//! `<name>_<frame>.manifest.json`, with its hash, its size and the BLAKE3 of its bytes.
 //!
-//! **Manifest.** Written last, after every file is in place, and removed before the first file
-//! of a re-render replaces an old one; it holds a check hash over its own contents, so an edited
-//! or truncated manifest is never trusted. A frame is **up to date** only when its manifest is
-//! readable and every file the scene asks for is on disk, listed with the hash the scene gives
-//! it now, of the listed size, and (EXR) carrying that hash in its header.
+//! **Manifest.** Written last, after every file is in place; before the first file of a
+//! re-render replaces an old one it is replaced by one listing only the files that write leaves
+//! alone. It holds a check hash over its own contents, so an edited or truncated manifest is
+//! never trusted, and it may list only the names nephele writes for its frame (a name that is
+//! absolute, holds `..` or a separator, or is any other file makes it untrusted: nothing it
+//! lists is ever removed). A frame is **up to date** only when its manifest is readable and
+//! every file the scene asks for is on disk as a regular file, listed with the hash the scene
+//! gives it now, of the listed size, (EXR) carrying that hash in its header, and with the
+//! listed BLAKE3 of its bytes: corrupted bytes are never counted done.
+//!
+//! **Other files.** Files the manifest lists that a run does not ask for (a `--formats`
+//! subset, a format taken out of the scene) are kept and listed again, reported as current or
+//! not ([`OtherFile`]); only `--clean` removes them. Nothing nephele wrote is deleted except to
+//! replace it with its new version.
 //!
 //! **Reasons.** A frame that is not up to date says why, from the hashes alone: `interrupted`,
-//! `manifest unreadable: …`, `renderer changed`, `formats changed: +vol`, or the components
-//! whose hashes differ (`changed: camera, sun and sky`).
+//! `manifest unreadable: …`, `renderer changed`, `formats added: +vol`, `files replaced since
+//! their manifest`, or the components whose hashes differ (`changed: camera, sun and sky`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -564,8 +573,8 @@ pub fn check_frame(
 ) -> FrameCheck {
     let wanted = wanted_files(shot, frame, inputs);
     let stem = super::frame_files::frame_stem(shot, frame);
-    let manifest = read_manifest(&manifest_path(shot, frame))
-        .and_then(|m| check_names(&m, &stem).map(|()| m));
+    let manifest =
+        read_manifest(&manifest_path(shot, frame)).and_then(|m| check_names(&m, &stem).map(|()| m));
     let present = wanted.iter().filter(|w| is_plain_file(&w.path)).count();
     let all = |status| FrameCheck {
         frame,
@@ -628,7 +637,11 @@ pub fn check_frame(
                 false
             }
             Some(f) if f.hash != hash_text(w.hash) => {
-                why.changed.extend(changed_components(&m, inputs, w.kind));
+                let changed = changed_components(&m, inputs, w.kind);
+                // None when the manifest's inputs are newer than the file (a file kept by a
+                // run that did not write it, made from an earlier state of the scene).
+                why.earlier |= changed.is_empty();
+                why.changed.extend(changed);
                 false
             }
             Some(f) => match verify_file(&w.path, w.kind, f) {
@@ -647,6 +660,7 @@ pub fn check_frame(
                 }
             },
         };
+        why.writes |= !ok;
         write.push(force || !ok);
         verified.push((ok && !force).then(|| listed.cloned()).flatten());
     }
@@ -681,10 +695,13 @@ pub fn check_frame(
 struct Reasons {
     changed: Vec<Component>,
     added: Vec<&'static str>,
+    earlier: bool,
     interrupted: bool,
     missing: bool,
     replaced: bool,
     unhashed: bool,
+    /// Some file is to be written (never called up to date then, whatever the reasons say).
+    writes: bool,
 }
 
 impl Reasons {
@@ -695,6 +712,9 @@ impl Reasons {
             self.changed.dedup();
             let labels: Vec<&str> = self.changed.iter().map(|c| c.label()).collect();
             why.push(format!("changed: {}", labels.join(", ")));
+        }
+        if self.earlier {
+            why.push("files kept from an earlier state of the scene".into());
         }
         if !self.added.is_empty() {
             let f: Vec<String> = self.added.iter().map(|k| format!("+{k}")).collect();
@@ -707,13 +727,15 @@ impl Reasons {
             why.push("files missing".into());
         }
         if self.replaced {
-            why.push("files changed since their manifest".into());
+            why.push("files replaced since their manifest".into());
         }
         if self.unhashed {
             why.push("a manifest without content hashes (nephele before them)".into());
         }
-        if why.is_empty() {
+        if why.is_empty() && !self.writes {
             FrameStatus::UpToDate
+        } else if why.is_empty() {
+            FrameStatus::OutOfDate("files out of date".into())
         } else {
             FrameStatus::OutOfDate(why.join("; "))
         }
@@ -758,9 +780,7 @@ fn verify_file(path: &Path, kind: FileKind, f: &ListedFile) -> Result<(), FilePr
     if !meta.is_file() || meta.len() != f.bytes {
         return Err(FileProblem::Replaced);
     }
-    if kind == FileKind::Format(Format::Exr)
-        && exr_hash(path).as_deref() != Some(f.hash.as_str())
-    {
+    if kind == FileKind::Format(Format::Exr) && exr_hash(path).as_deref() != Some(f.hash.as_str()) {
         return Err(FileProblem::Replaced);
     }
     if f.blake3.is_empty() {

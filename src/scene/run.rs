@@ -165,8 +165,7 @@ impl Shot {
                     &frame_files::frame_stem(self, frame),
                     &self.scene().path,
                 )?;
-                let check =
-                    provenance::check_frame(self, frame, &inputs, opts.force, opts.clean);
+                let check = provenance::check_frame(self, frame, &inputs, opts.force, opts.clean);
                 report.others.count(&check.others);
                 let finished = check.is_done();
                 if let FrameStatus::OutOfDate(reason) = &check.status {

@@ -110,7 +110,10 @@ fn a_frame_from_an_older_scene_state_is_never_counted_done() {
     r(&["--frames", "2", "--formats", "png"]);
     let t = r(&["--frames", "2"]);
     assert!(t.contains("1 frames rendered, 0 already done"), "{t}");
-    assert!(t.contains("formats changed: +exr"), "{t}");
+    assert!(
+        t.contains("1 files kept from an earlier state of the scene"),
+        "{t}"
+    );
     let m = out.join("s_0002.manifest.json");
     assert_eq!(
         listed_hash(&m, "s_0002.exr").unwrap(),
@@ -140,31 +143,231 @@ fn a_frame_from_an_older_scene_state_is_never_counted_done() {
 }
 
 #[test]
-fn formats_come_and_go_without_rerendering_the_rest() {
+fn formats_come_and_go_without_rerendering_or_deleting_the_rest() {
     let dir = temp_dir("vol");
     let out = dir.join("out");
     write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png, Vol");
     run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
     let exr = std::fs::read(out.join("s_0001.exr")).unwrap();
+    let vol = std::fs::read(out.join("s_0001.vol")).unwrap();
     let modified = |p: &str| std::fs::metadata(out.join(p)).unwrap().modified().unwrap();
     let (exr_time, png_time) = (modified("s_0001.exr"), modified("s_0001.png"));
+    // A format taken out of the scene: its files stay, current, and are reported.
     write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png");
     let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
-    assert!(t.contains("2 formats changed: -vol"), "{t}");
+    assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
     assert!(
-        !out.join("s_0001.vol").exists(),
-        "the dropped format's file goes"
+        t.contains("kept 2 files of formats this run does not write (vol); --clean"),
+        "{t}"
     );
+    assert_eq!(std::fs::read(out.join("s_0001.vol")).unwrap(), vol);
     assert_eq!(modified("s_0001.exr"), exr_time, "the EXR is not rewritten");
     assert_eq!(modified("s_0001.png"), png_time, "the PNG is not rewritten");
-    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
-    assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
+    // Put back, the kept grid is still the scene's: nothing to do.
     write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png, Vol");
     let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
-    assert!(t.contains("2 formats changed: +vol"), "{t}");
+    assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
+    // A scene edit the grid depends on, while the grid is left out: it stays, no longer current.
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png");
+    std::fs::write(
+        dir.join("c.ron"),
+        std::fs::read_to_string(dir.join("c.ron"))
+            .unwrap()
+            .replace("seed: 3", "seed: 4"),
+    )
+    .unwrap();
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
+    assert!(t.contains("2 frames rendered"), "{t}");
+    assert!(t.contains("2 of them no longer current"), "{t}");
+    assert_eq!(std::fs::read(out.join("s_0001.vol")).unwrap(), vol);
+    // Only --clean removes them.
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2", "--clean"]));
+    assert!(
+        t.contains("removed 2 files of formats this run does not write (vol)"),
+        "{t}"
+    );
+    assert!(!out.join("s_0001.vol").exists());
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2"]));
+    assert!(t.contains("0 frames rendered, 2 already done"), "{t}");
+    assert!(!t.contains("kept"), "{t}");
+    // A grid added needs no render of the images.
+    let exr = std::fs::read(out.join("s_0001.exr")).unwrap();
+    let exr_time = modified("s_0001.exr");
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..2", "--formats", "vol"]));
+    assert!(t.contains("2 formats added: +vol"), "{t}");
     assert!(out.join("s_0001.vol").is_file());
     assert_eq!(modified("s_0001.exr"), exr_time, "a grid needs no render");
     assert_eq!(std::fs::read(out.join("s_0001.exr")).unwrap(), exr);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn following_the_usd_hint_keeps_every_finished_frame() {
+    // `nephele usd` says to add the VDBs with `render --formats vdb`: that run writes the VDBs
+    // and leaves the finished EXRs and PNGs as they are.
+    let dir = temp_dir("usd-hint");
+    let out = dir.join("out");
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png");
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4"]));
+    let before: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "exr" || x == "png"))
+        .map(|p| (p.clone(), std::fs::read(&p).unwrap()))
+        .collect();
+    assert_eq!(before.len(), 8);
+    let t = run(nephele(&dir).args(["usd", "c.ron"]));
+    assert!(t.contains("--formats vdb"), "{t}");
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4", "--formats", "vdb"]));
+    for (p, bytes) in &before {
+        assert_eq!(&std::fs::read(p).unwrap(), bytes, "{}", p.display());
+    }
+    assert!(out.join("s_0004.vdb").is_file());
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4"]));
+    assert!(t.contains("0 frames rendered, 4 already done"), "{t}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Rewrite the manifest at `path` through `edit`, its check hash recomputed (as anyone can).
+fn forge_manifest(path: &Path, edit: impl FnOnce(&mut nephele::scene::provenance::Manifest)) {
+    use nephele::scene::provenance::{Manifest, hash_text};
+    let mut m: Manifest = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    edit(&mut m);
+    m.check = hash_text(m.check_hash());
+    std::fs::write(path, m.to_text()).unwrap();
+}
+
+#[test]
+fn nothing_outside_the_frames_folder_is_touched() {
+    use nephele::scene::provenance::ListedFile;
+    let dir = temp_dir("outside");
+    let out = dir.join("out");
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png");
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4"]));
+    let victim = dir.join("victim");
+    std::fs::write(&victim, b"an artist's file").unwrap();
+    let survives = || assert_eq!(std::fs::read(&victim).unwrap(), b"an artist's file");
+    // A manifest naming files elsewhere (check hash recomputed) is not trusted, even with
+    // --clean and --force: the frame is rendered again and nothing it lists is removed.
+    for name in [
+        "../victim".to_string(),
+        victim.to_string_lossy().into_owned(),
+        "sub/s_0002.png".into(),
+        "s_0003.png".into(),
+    ] {
+        let m = out.join("s_0002.manifest.json");
+        forge_manifest(&m, |m| {
+            m.files.push(ListedFile {
+                name: name.clone(),
+                kind: "png".into(),
+                hash: "0000000000000000".into(),
+                bytes: 16,
+                blake3: String::new(),
+            })
+        });
+        let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "2", "--clean"]));
+        assert!(
+            t.contains("not a file nephele writes for this frame"),
+            "{name}: {t}"
+        );
+        survives();
+        assert!(out.join("s_0003.png").is_file());
+        forge_manifest(&m, |m| {
+            m.files.push(ListedFile {
+                name: name.clone(),
+                kind: "exr".into(),
+                hash: "0000000000000000".into(),
+                bytes: 16,
+                blake3: String::new(),
+            })
+        });
+        run(nephele(&dir).args(["render", "c.ron", "--frames", "2", "--force", "--clean"]));
+        survives();
+    }
+    // Links planted at a frame's lock, manifest or file names are never written through.
+    std::os::unix::fs::symlink("../victim", out.join(".s_0003.lock")).unwrap();
+    let t = fails(nephele(&dir).args(["render", "c.ron", "--frames", "3", "--force"]));
+    assert!(t.contains(".s_0003.lock: is a symbolic link"), "{t}");
+    survives();
+    std::fs::remove_file(out.join(".s_0003.lock")).unwrap();
+    for file in ["s_0003.manifest.json", "s_0003.png", "s_0003.exr"] {
+        std::fs::remove_file(out.join(file)).unwrap();
+        std::os::unix::fs::symlink("../victim", out.join(file)).unwrap();
+        let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "3"]));
+        assert!(t.contains("1 frames rendered"), "{file}: {t}");
+        survives();
+        assert!(
+            !out.join(file).is_symlink(),
+            "{file} is nephele's own file again"
+        );
+    }
+    // A link to a copy of the frame's own file is not counted done either.
+    std::fs::copy(out.join("s_0004.png"), dir.join("copy.png")).unwrap();
+    std::fs::remove_file(out.join("s_0004.png")).unwrap();
+    std::os::unix::fs::symlink("../copy.png", out.join("s_0004.png")).unwrap();
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "4"]));
+    assert!(t.contains("1 frames rendered"), "{t}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn corrupted_bytes_are_never_counted_done() {
+    let dir = temp_dir("bytes");
+    let out = dir.join("out");
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Exr, Png, Vdb");
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4"]));
+    let originals: Vec<Vec<u8>> = ["s_0001.png", "s_0002.exr", "s_0003.vdb"]
+        .iter()
+        .map(|f| std::fs::read(out.join(f)).unwrap())
+        .collect();
+    // A PNG overwritten by as many pseudo-random bytes.
+    let png = out.join("s_0001.png");
+    let n = originals[0].len();
+    let noise: Vec<u8> = (0..n as u64)
+        .map(|i| (i.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 56) as u8)
+        .collect();
+    std::fs::write(&png, &noise).unwrap();
+    // An EXR with its header intact and one byte of its pixel chunks changed.
+    let exr = out.join("s_0002.exr");
+    let mut bytes = originals[1].clone();
+    let at = bytes.len() - 20;
+    bytes[at] ^= 0x40;
+    std::fs::write(&exr, &bytes).unwrap();
+    // A VDB with one bit flipped in its middle.
+    let vdb = out.join("s_0003.vdb");
+    let mut bytes = originals[2].clone();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 1;
+    std::fs::write(&vdb, &bytes).unwrap();
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "1..4"]));
+    assert!(t.contains("3 frames rendered, 1 already done"), "{t}");
+    assert!(t.contains("3 files replaced since their manifest"), "{t}");
+    for (f, original) in ["s_0001.png", "s_0002.exr", "s_0003.vdb"]
+        .iter()
+        .zip(&originals)
+    {
+        assert_eq!(
+            &std::fs::read(out.join(f)).unwrap(),
+            original,
+            "{f} rendered again"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn duplicate_formats_are_refused() {
+    let dir = temp_dir("dup");
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Png, Exr, Png");
+    let t = fails(nephele(&dir).args(["render", "c.ron"]));
+    assert!(
+        t.contains("c.ron: output.formats: png is listed twice"),
+        "{t}"
+    );
+    write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Png");
+    let t = fails(nephele(&dir).args(["render", "c.ron", "--formats", "png,exr,png"]));
+    assert!(t.contains("png is listed twice"), "{t}");
+    assert!(!dir.join("out").exists(), "nothing is written");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -243,6 +446,27 @@ fn temporaries_of_a_killed_render_are_removed_on_the_next_run() {
         run(nephele(&dir).args(next));
         assert_eq!(temps(&out), Vec::<String>::new(), "after {next:?}");
     }
+    // The caches' and the statistics' temporaries too; one being written (its writer holds
+    // its lock) stays, and another's files are left alone.
+    let dead = [
+        ".target-0123abcd.ron.11-22.tmp",
+        ".blend-00ff00ff00ff00ff.ron.11-22.tmp",
+        ".s_stats.csv.11-22.tmp",
+        ".s_0001.manifest.json.11-22.tmp",
+    ];
+    for name in dead {
+        std::fs::write(out.join(name), b"left by a killed run").unwrap();
+    }
+    let live = out.join(".s_0002.exr.33-44.tmp");
+    let writer = std::fs::File::create(&live).unwrap();
+    writer.lock().unwrap();
+    let foreign = out.join(".notes.txt.11-22.tmp");
+    std::fs::write(&foreign, b"not nephele's").unwrap();
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "1"]));
+    let mut left = temps(&out);
+    left.sort();
+    assert_eq!(left, [".notes.txt.11-22.tmp", ".s_0002.exr.33-44.tmp"]);
+    drop(writer);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
