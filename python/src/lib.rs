@@ -499,8 +499,9 @@ impl Scene {
     /// Open the scene's shot (the options of `nephele render`). `frames` is a frame selection
     /// (`"1..24,30"`, or a list of frame numbers), `formats` overrides `output.formats`
     /// (`["exr", "vdb"]`), `output` overrides the output folder, `region` is
-    /// `"x0,y0,x1,y1"`.
-    #[pyo3(signature = (preview=false, passes=false, frames=None, output=None, formats=None, force=false, region=None, dump_blobs=false))]
+    /// `"x0,y0,x1,y1"`; `clean` removes the frames' files of formats the run does not write
+    /// (kept otherwise).
+    #[pyo3(signature = (preview=false, passes=false, frames=None, output=None, formats=None, force=false, region=None, dump_blobs=false, clean=false))]
     #[allow(clippy::too_many_arguments)]
     fn shot(
         &self,
@@ -512,6 +513,7 @@ impl Scene {
         force: bool,
         region: Option<String>,
         dump_blobs: bool,
+        clean: bool,
     ) -> PyResult<Shot> {
         let frames = frames.map(|f| selection(f, &self.scene.path)).transpose()?;
         let mut scene = self.scene.clone();
@@ -532,7 +534,7 @@ impl Scene {
             output,
             preview,
             force,
-            clean: false,
+            clean,
             dump_blobs,
             stats: false,
             passes,
