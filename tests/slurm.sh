@@ -8,7 +8,12 @@
 #   2. submits the same preview shot as a 4-task array with `nephele farm --submit`, waits for it
 #      (bounded), and checks that every frame exists once and equals the local render byte for
 #      byte (and that the fitted target cache does too);
-#   3. submits frames 85..96 at full quality as 4 tasks of 3 frames, kills task 0 (SIGKILL) as
+#   3. submits frames 1..4 of the preview as 2 tasks to an output folder whose name holds a
+#      space, a quote, a `$(touch PWNED)`, a `;` and Slurm's `%j`, from the temporary folder,
+#      and checks that the frames and the fit landed in that literal folder, that the logs are
+#      at their literal paths (the folder's `%j` kept, Slurm's own `%j`, `%A_%a` expanded) and
+#      that no `touch` ran;
+#   4. submits frames 85..96 at full quality as 4 tasks of 3 frames, kills task 0 (SIGKILL) as
 #      soon as its first frame is written (the kill lands mid-frame), requeues it with
 #      `scontrol requeue`, and checks that it resumed (skipped the finished frame) and that the
 #      frames again equal a local render;
@@ -231,7 +236,47 @@ for i in 0 1 2 3; do
 done
 echo "array $arr: 4 tasks completed; $total preview frames equal the local render byte for byte"
 
-# --- 3. kill a task mid-frame, requeue it, check it resumes --------------------------------
+# --- 3. an output folder a shell would run and Slurm would expand --------------------------
+# The job files must give nephele the folder word for word and Slurm's --output its name with
+# `%` doubled; the jobs start in $tmp (sbatch's working folder), where an injected `touch`
+# would leave PWNED.
+hostile="$tmp/it's \$(touch PWNED) %j; farm"
+t=$(now)
+out=$(cd "$tmp" && "$bin" farm "$scene" --engine slurm --frames 1..4 --chunk 2 --preview \
+	--output "$hostile" --submit)
+read -r prep arr <<<"$(job_ids "$out")"
+jobs_submitted="$prep $arr"
+grep -q "^2 tasks" <<<"$out" || fail "expected 2 tasks:
+$out"
+# (bounded tighter than the others: it takes about 10 s)
+wait_jobs 120 "$prep" "$arr"
+farm_hostile=$(since "$t")
+check_completed "$prep" 1
+check_completed "$arr" 2
+for f in 1 2 3 4; do
+	for ext in exr png manifest.json; do
+		name=$(printf 'duck-diffusion_%04d.%s' "$f" "$ext")
+		cmp -s "$tmp/local/preview/$name" "$hostile/preview/$name" ||
+			fail "$hostile/preview/$name is missing or differs from the local render: $(find "$tmp" -name "$name")"
+	done
+done
+count=$(find "$hostile/preview" -maxdepth 1 -name 'duck-diffusion_*.*' | wc -l)
+[ "$count" = 12 ] || fail "$hostile/preview holds $count frame files, expected 12"
+cmp -s "$tmp"/local/target-*.ron "$hostile"/target-*.ron || fail "the fit is not in $hostile"
+logs=$hostile/preview/logs
+[ -f "$logs/duck-diffusion-preview-prepare_$prep.log" ] ||
+	fail "the prepare job's log is not in $logs: $(find "$tmp" -name '*-prepare_*.log')"
+for i in 0 1; do
+	grep -qF "$hostile/preview: 2 frames rendered, 0 already done" \
+		"$logs/duck-diffusion-preview_${arr}_$i.log" ||
+		fail "task $i's log is not in $logs or did not render 2 frames: $(find "$tmp" -name "*_${arr}_$i.log")"
+done
+pwned=$(find "$tmp" "$repo" -maxdepth 1 -name 'PWNED*')
+pwned+=$(find "$hostile" -name 'PWNED*')
+[ -z "$pwned" ] || fail "a job ran the \$(touch PWNED) in the folder's name: $pwned"
+echo "array $arr: 2 tasks wrote frames 1..4, the fit and the logs in the literal folder ${hostile#"$tmp"/}; nothing in its name ran"
+
+# --- 4. kill a task mid-frame, requeue it, check it resumes --------------------------------
 t=$(now)
 "$bin" render "$scene" --frames 85..96 --output "$tmp/local" 2>/dev/null
 local_full=$(since "$t")
@@ -282,7 +327,7 @@ echo "array $arr: task 0 killed mid-frame and requeued; it resumed ($skipped fra
 echo "task 0's log (both runs):"
 sed 's/^/  | /' "$log0"
 
-# --- 4. (benchmark, NEPHELE_SLURM_BENCH=1) the whole shot at full quality ------------------
+# --- 5. (benchmark, NEPHELE_SLURM_BENCH=1) the whole shot at full quality ------------------
 if [ "${NEPHELE_SLURM_BENCH:-0}" = 1 ]; then
 	t=$(now)
 	"$bin" prepare "$scene" --output "$tmp/bench-local" 2>/dev/null
@@ -300,5 +345,6 @@ if [ "${NEPHELE_SLURM_BENCH:-0}" = 1 ]; then
 fi
 
 echo "wall time: preview shot ($total frames, 160x90) 4-task array ${farm_preview} s vs local ${local_preview} s (both include the fit)"
+echo "wall time: preview frames 1..4 in the hostile folder, 2-task array ${farm_hostile} s (with the fit)"
 echo "wall time: full quality frames 85..96 (640x360) 4-task array with one requeue ${farm_full} s vs local ${local_full} s (target cached)"
 echo "farm test passed"

@@ -72,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--submit submits to Slurm only; apply the k8s manifests with kubectl (README, \"Rendering on a farm\")"
         );
     }
-    farm::check_sbatch_args(&args.sbatch_args).map_err(anyhow::Error::msg)?;
+    farm::check_sbatch_args(&args.sbatch_args)?;
     let scene = scene::load_scene(&args.scene)?;
     let opts = RenderOptions {
         frames: args.frames.clone(),
@@ -86,78 +86,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .chunk
         .unwrap_or(DEFAULT_CHUNK.min(chunk::frame_count(shot.frames())));
     let tasks = chunk::task_count(shot.frames(), chunk_frames)?;
+    let job = farm_job(&args, &shot, tasks)?;
+    // Both job files are made in memory first: a refused value writes nothing.
+    let files = job_files(&args, &job, &scene.name)?;
+    let job_dir = std::path::absolute(shot.dir())
+        .with_context(|| format!("resolving {}", shot.dir().display()))?;
     nephele::atomic::check_writable(shot.dir())
         .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
-    let absolute =
-        |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
-    let dir = absolute(shot.dir())?;
-    let nephele = match (&args.nephele, args.engine) {
-        (Some(p), _) => p.clone(),
-        (None, Engine::Slurm) => {
-            std::env::current_exe().context("finding this program's path (give --nephele)")?
-        }
-        (None, Engine::K8s) => PathBuf::from("nephele"),
-    };
-    let job = FarmJob {
-        name: if args.preview {
-            format!("{}-preview", scene.name)
-        } else {
-            scene.name.clone()
-        },
-        nephele,
-        scene: absolute(&args.scene)?,
-        output: absolute(shot.cache_dir())?,
-        frames: shot.frames().to_vec(),
-        tasks,
-        preview: args.preview,
-        logs: dir.join("logs"),
-    };
-    let write = |name: String, text: String| -> anyhow::Result<PathBuf> {
-        let path = dir.join(name);
+    if args.engine == Engine::Slurm {
+        std::fs::create_dir_all(&job.logs)
+            .with_context(|| format!("creating {}", job.logs.display()))?;
+    }
+    let write = |(name, text): (String, String)| -> anyhow::Result<PathBuf> {
+        let path = job_dir.join(name);
         nephele::atomic::write_bytes_atomically(&path, text.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
         Ok(path)
     };
-    let (prepare, array) = match args.engine {
-        Engine::Slurm => {
-            std::fs::create_dir_all(&job.logs)
-                .with_context(|| format!("creating {}", job.logs.display()))?;
-            (
-                write(
-                    format!("{}.prepare.sbatch", scene.name),
-                    farm::slurm_prepare_script(&job, &args.sbatch_args),
-                )?,
-                write(
-                    format!("{}.sbatch", scene.name),
-                    farm::slurm_array_script(&job, &args.sbatch_args),
-                )?,
-            )
-        }
-        Engine::K8s => {
-            let pod = K8sPod {
-                image: args.image.clone(),
-                volume_claim: args.volume_claim.clone(),
-                mount: farm::k8s_mount(&job).with_context(|| {
-                    format!(
-                        "k8s: the scene {} and the output folder {} share no folder below / to mount \
-                         the volume at; put both under one shared folder",
-                        job.scene.display(),
-                        job.output.display()
-                    )
-                })?,
-            };
-            (
-                write(
-                    format!("{}.prepare.k8s.yaml", scene.name),
-                    farm::k8s_prepare_job(&job, &pod),
-                )?,
-                write(
-                    format!("{}.k8s.yaml", scene.name),
-                    farm::k8s_indexed_job(&job, &pod),
-                )?,
-            )
-        }
-    };
+    let [prepare, array] = files;
+    let (prepare, array) = (write(prepare)?, write(array)?);
     println!(
         "{} tasks of at most {} frames (frames {}):\n  {}\n  {}",
         tasks,
@@ -186,6 +133,104 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// The job of `shot` in `tasks` tasks, every path absolute.
+fn farm_job(args: &Args, shot: &Shot, tasks: u32) -> anyhow::Result<FarmJob> {
+    let absolute =
+        |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+    let scene = shot.scene();
+    let nephele = match (&args.nephele, args.engine) {
+        (Some(p), _) => p.clone(),
+        (None, Engine::Slurm) => {
+            std::env::current_exe().context("finding this program's path (give --nephele)")?
+        }
+        (None, Engine::K8s) => PathBuf::from("nephele"),
+    };
+    Ok(FarmJob {
+        name: if args.preview {
+            format!("{}-preview", scene.name)
+        } else {
+            scene.name.clone()
+        },
+        nephele,
+        scene: absolute(&args.scene)?,
+        output: absolute(shot.cache_dir())?,
+        frames: shot.frames().to_vec(),
+        tasks,
+        preview: args.preview,
+        logs: absolute(shot.dir())?.join("logs"),
+        origins: origins(args, scene),
+    })
+}
+
+/// Where the job's paths came from, as a refusal names them (see [`farm::Origins`]); a relative
+/// path is said to be resolved against the current folder, whose name is then part of it.
+fn origins(args: &Args, scene: &scene::Scene) -> farm::Origins {
+    let named = |p: &Path, from: &str| {
+        if p.is_absolute() {
+            from.to_string()
+        } else {
+            format!("{from}, resolved against the current folder")
+        }
+    };
+    let output = match (&args.output, &scene.file.output.dir) {
+        (Some(p), _) => named(p, "--output"),
+        (None, Some(d)) => named(Path::new(d), "the scene's output.dir"),
+        (None, None) => named(
+            &scene.output_dir,
+            "the default output folder renders/<scene file name>",
+        ),
+    };
+    farm::Origins {
+        scene: named(&args.scene, "the scene file path"),
+        output,
+        nephele: match &args.nephele {
+            Some(p) => named(p, "--nephele"),
+            None => "this program's own path".into(),
+        },
+    }
+}
+
+/// The two job files of `job` (prepare, then the array) as (file name, text), `name` being the
+/// scene's frame prefix; a value the files cannot hold is the error.
+fn job_files(args: &Args, job: &FarmJob, name: &str) -> anyhow::Result<[(String, String); 2]> {
+    Ok(match args.engine {
+        Engine::Slurm => [
+            (
+                format!("{name}.prepare.sbatch"),
+                farm::slurm_prepare_script(job, &args.sbatch_args)?,
+            ),
+            (
+                format!("{name}.sbatch"),
+                farm::slurm_array_script(job, &args.sbatch_args)?,
+            ),
+        ],
+        Engine::K8s => {
+            let pod = K8sPod {
+                image: args.image.clone(),
+                volume_claim: args.volume_claim.clone(),
+                mount: farm::k8s_mount(job).with_context(|| {
+                    format!(
+                        "k8s: the scene {} and the output folder {} share no folder below / to mount \
+                         the volume at; put both under one shared folder",
+                        job.scene.display(),
+                        job.output.display()
+                    )
+                })?,
+            };
+            [
+                (
+                    format!("{name}.prepare.k8s.yaml"),
+                    farm::k8s_prepare_job(job, &pod)?,
+                ),
+                (
+                    format!("{name}.k8s.yaml"),
+                    farm::k8s_indexed_job(job, &pod)?,
+                ),
+            ]
+        }
+    })
 }
 
 /// Submit the prepare script, then the array depending on it; print the job ids.

@@ -6,8 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::cli_support;
+use crate::temp_support::temp_dir;
 
-use cli_support::{nephele_in as bin, run, succeeded as ok};
+use cli_support::{nephele_in as bin, run, succeeded as ok, text};
 use nephele::scene::chunk::ARRAY_INDEX_VARS;
 
 /// A folder with `shot.ron`: a tiny 10-frame shot of a coarse sphere fit.
@@ -163,7 +164,7 @@ fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
     assert!(array.contains("#SBATCH --array=0-3\n"), "{array}");
     assert!(array.contains("#SBATCH --partition=render\n"), "{array}");
     assert!(
-        array.contains("'--task' \"${SLURM_ARRAY_TASK_ID}/4\""),
+        array.contains("'--task' \"${SLURM_ARRAY_TASK_ID}\"'/4'"),
         "{array}"
     );
     assert!(
@@ -196,4 +197,192 @@ fn farm_writes_a_prepare_job_and_an_array_of_chunks() {
         "{job}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A folder name that a shell would run if a job file wrote it unquoted, and that Slurm would
+/// expand if it wrote it unescaped; legal on Linux and kept word for word.
+const HOSTILE: &str = "out 'q' $(touch PWNED) `touch PWNED2` %j %A_%a 100% ; #1 & x";
+
+/// The 10-frame scene of [`shot_dir`] written at `path`.
+fn write_scene(path: &Path) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(
+        path,
+        "Scene(target: Fit(mesh: \"builtin:sphere\", blobs: 12, candidates: 200, samples: 4000), \
+         shot: (width: 64, height: 36, fps: 10, seconds: 1.0), output: (formats: [Exr, Png]))",
+    )
+    .unwrap();
+}
+
+/// Every path under `dir` (files and folders), recursively.
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut all = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            all.extend(walk(&p));
+        }
+        all.push(p);
+    }
+    all
+}
+
+/// Paths under `dir` whose name starts with `prefix`.
+fn named(dir: &Path, prefix: &str) -> Vec<PathBuf> {
+    walk(dir)
+        .into_iter()
+        .filter(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix))
+        .collect()
+}
+
+/// Run `script` with bash in `dir` as a Slurm task with `SLURM_ARRAY_TASK_ID=1` would; return
+/// the arguments the fake nephele recorded in `record`.
+fn run_script(script: &Path, dir: &Path, record: &Path) -> Vec<String> {
+    let _ = std::fs::remove_file(record);
+    let out = std::process::Command::new("bash")
+        .arg(script)
+        .current_dir(dir)
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let recorded = std::fs::read_to_string(record).unwrap();
+    recorded.lines().map(str::to_string).collect()
+}
+
+#[test]
+fn farm_scripts_pass_hostile_folders_word_for_word() {
+    let dir = temp_dir("farm-hostile");
+    // The scene, the output folder and the program all sit in hostile folders.
+    let scene = dir.join(HOSTILE).join("scenes").join("shot.ron");
+    write_scene(&scene);
+    let output = dir.join(HOSTILE).join("renders");
+    let record = dir.join("args.txt");
+    let fake = dir.join(HOSTILE).join("bin").join("nephele");
+    std::fs::create_dir_all(fake.parent().unwrap()).unwrap();
+    std::fs::write(
+        &fake,
+        format!(
+            "#!/bin/sh\nprintf '%s\\n' \"$@\" > {}\n",
+            nephele::farm::shell_quote(record.to_str().unwrap())
+        ),
+    )
+    .unwrap();
+    let mut perms = std::fs::metadata(&fake).unwrap().permissions();
+    std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o755);
+    std::fs::set_permissions(&fake, perms).unwrap();
+    let t = run(bin(&dir)
+        .arg("farm")
+        .arg(&scene)
+        .args(["--engine", "slurm", "--chunk", "5", "--output"])
+        .arg(&output)
+        .arg("--nephele")
+        .arg(&fake));
+    assert!(t.starts_with("2 tasks of at most 5 frames"), "{t}");
+    let (scene, output) = (scene.to_str().unwrap(), output.to_str().unwrap());
+    let prepare = Path::new(output).join("shot.prepare.sbatch");
+    let array = Path::new(output).join("shot.sbatch");
+    for script in [&prepare, &array] {
+        let check = std::process::Command::new("bash")
+            .arg("-n")
+            .arg(script)
+            .output()
+            .unwrap();
+        assert!(
+            check.status.success(),
+            "bash -n {}: {}",
+            script.display(),
+            text(&check)
+        );
+        // Slurm reads the logs' path from the --output line: `%` doubled, Slurm's own kept.
+        let body = std::fs::read_to_string(script).unwrap();
+        let logs = format!("{output}/logs").replace('%', "%%");
+        assert!(
+            body.contains(&format!("\n#SBATCH --output=\"{logs}\"/shot")),
+            "{body}"
+        );
+    }
+    assert_eq!(
+        run_script(&prepare, &dir, &record),
+        ["prepare", scene, "--output", output]
+    );
+    assert_eq!(
+        run_script(&array, &dir, &record),
+        [
+            "render", scene, "--output", output, "--frames", "1..10", "--task", "1/2"
+        ]
+    );
+    assert_eq!(named(&dir, "PWNED"), Vec::<PathBuf>::new());
+}
+
+#[test]
+fn farm_refuses_a_line_break_in_any_path_and_writes_nothing() {
+    let dir = temp_dir("farm-newline");
+    write_scene(&dir.join("shot.ron"));
+    // A file name may hold a newline on Linux.
+    write_scene(&dir.join("two\nlines.ron"));
+    std::fs::write(
+        dir.join("dir.ron"),
+        "Scene(target: Fit(mesh: \"builtin:sphere\", blobs: 12, candidates: 200, samples: 4000), \
+         shot: (width: 64, height: 36, fps: 10, seconds: 1.0), \
+         output: (dir: \"renders\\nx\", formats: [Exr, Png]))",
+    )
+    .unwrap();
+    let mut before = walk(&dir);
+    before.sort();
+    let cases: [(&[&str], &[&str]); 6] = [
+        (
+            &["shot.ron", "--engine", "slurm", "--output", "out\nx"],
+            &["the output folder", "(from --output", "rename the folder"],
+        ),
+        (
+            &["shot.ron", "--engine", "k8s", "--output", "out\nx"],
+            &["the output folder", "(from --output", "rename the folder"],
+        ),
+        (
+            &["two\nlines.ron", "--engine", "slurm", "--output", "out"],
+            &[
+                "the scene file",
+                "(from the scene file path",
+                "rename the scene file",
+            ],
+        ),
+        (
+            &["two\nlines.ron", "--engine", "k8s", "--output", "out"],
+            &[
+                "the scene file",
+                "(from the scene file path",
+                "rename the scene file",
+            ],
+        ),
+        (
+            &["dir.ron", "--engine", "slurm"],
+            &[
+                "the output folder",
+                "(from the scene's output.dir",
+                "rename the folder",
+            ],
+        ),
+        (
+            &["shot.ron", "--engine", "slurm", "--output", "out"],
+            &["the nephele program", "(from --nephele"],
+        ),
+    ];
+    for (i, (args, names)) in cases.iter().enumerate() {
+        let mut c = bin(&dir);
+        c.arg("farm").args(*args);
+        if i == 5 {
+            c.args(["--nephele", "/opt/nephele\n/bin/nephele"]);
+        }
+        let out = c.output().unwrap();
+        let t = text(&out);
+        assert!(!out.status.success(), "{args:?}: {t}");
+        for n in names.iter().chain(&["control character '\\n'"]) {
+            assert!(t.contains(n), "{args:?}: no {n:?} in: {t}");
+        }
+        // No job file, no folder: nothing was written.
+        let mut after = walk(&dir);
+        after.sort();
+        assert_eq!(after, before, "{args:?}: {t}");
+    }
 }
