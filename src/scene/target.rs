@@ -70,10 +70,12 @@ pub fn load_spec(
             let identity: Vec<u8> = if mesh.starts_with("builtin:") {
                 mesh.as_bytes().to_vec()
             } else {
-                std::fs::read(mesh).map_err(|source| SceneError::Io {
-                    path: PathBuf::from(mesh),
-                    source,
-                })?
+                crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
+                    |source| SceneError::Io {
+                        path: PathBuf::from(mesh),
+                        source,
+                    },
+                )?
             };
             let cfg = FitConfig {
                 blobs: *blobs,
