@@ -7,8 +7,11 @@
 use std::path::{Path, PathBuf};
 
 use super::{Scene, SceneError, Target};
+use glam::DVec3;
+
 use crate::blobby::BlobModel;
 use crate::blobby::model_file::MODEL_VERSION;
+use crate::geometry::Aabb;
 use crate::pipeline::{self, FIT_ALGORITHM_VERSION, FitConfig};
 
 /// Where the target came from.
@@ -22,12 +25,25 @@ pub enum TargetOrigin {
     Cached(PathBuf),
 }
 
-/// Load (or fit and cache in `cache_dir`) the scene's target model.
+/// The diagonals of the target box (world units, after the scene's `transform`) nephele
+/// renders: the renderer works in single precision with a few fixed tolerances, and a target
+/// far outside this range rendered empty or wrong frames (measured: faithful from about
+/// `4e-6` to `4e12`; the range keeps a margin of more than a decade on each side).
+pub const TARGET_DIAGONAL: (f64, f64) = (1e-4, 1e10);
+
+/// How far from the world origin the target box may reach, in diagonals of the box: farther,
+/// single-precision positions no longer resolve the cloud (measured: a target 2.5·10⁵
+/// diagonals away renders wrong, 2.5·10³ away as at the origin).
+pub const TARGET_REACH: f64 = 1e4;
+
+/// Load (or fit and cache in `cache_dir`) the scene's target model. A mesh whose box, moved
+/// by the scene's `transform`, is outside [`TARGET_DIAGONAL`] or [`TARGET_REACH`] is refused
+/// before it is fitted (see [`check_target_box`]).
 pub fn load_target(
     scene: &Scene,
     cache_dir: &Path,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
-    load_spec(scene, &scene.file.target, cache_dir)
+    load(scene, &scene.file.target, cache_dir, true)
 }
 
 /// Load (or fit and cache in `cache_dir`) the model `spec` of `scene` (its target, or a
@@ -36,6 +52,108 @@ pub fn load_spec(
     scene: &Scene,
     spec: &Target,
     cache_dir: &Path,
+) -> Result<(BlobModel, TargetOrigin), SceneError> {
+    load(scene, spec, cache_dir, false)
+}
+
+/// What `spec` names, for an error: `the mesh "…"` or `the model "…"`.
+pub(crate) fn spec_name(spec: &Target) -> String {
+    match spec {
+        Target::Model(p) => format!("the model {p:?}"),
+        Target::Fit { mesh, .. } => format!("the mesh {mesh:?}"),
+    }
+}
+
+/// Refuse a target box (`bounds`: world units, after the scene's `transform`) that the
+/// renderer cannot draw: a diagonal outside [`TARGET_DIAGONAL`], or a box reaching more than
+/// [`TARGET_REACH`] diagonals from the origin. The error names the scene file, the field, the
+/// extent found, the supported range, and the `transform` that brings the target into it.
+/// `what` names the model or mesh (see [`spec_name`]).
+pub fn check_target_box(scene: &Scene, bounds: &Aabb, what: &str) -> Result<(), SceneError> {
+    let t = &scene.file.transform;
+    let size = bounds.size();
+    let diagonal = size.length();
+    let (lo, hi) = TARGET_DIAGONAL;
+    let spans = format!(
+        "{what} spans {} × {} × {} world units{} (diagonal {})",
+        num(size.x),
+        num(size.y),
+        num(size.z),
+        if t.scale == 1.0 {
+            String::new()
+        } else {
+            format!(" after transform.scale {}", num(t.scale))
+        },
+        num(diagonal)
+    );
+    let invalid = |field: &str, message: String| SceneError::Invalid {
+        path: scene.path.clone(),
+        field: field.into(),
+        message,
+    };
+    // Written so that a NaN diagonal is refused too.
+    if !(diagonal >= lo && diagonal <= hi) {
+        // The power of ten that brings the diagonal to between about 0.3 and 3.
+        let factor = 10f64.powf(-diagonal.log10().round());
+        let scale = t.scale * factor;
+        let fix = if scale.is_finite() && scale > 0.0 {
+            format!(
+                "set `transform: (scale: {})` in the scene (a diagonal of {}) or rescale the file",
+                num(scale),
+                num(diagonal * factor)
+            )
+        } else {
+            "rescale the file".to_string()
+        };
+        return Err(invalid(
+            "target",
+            format!(
+                "{spans}, outside the {} to {} world units nephele renders (in single \
+                 precision, a target of this size renders empty or wrong frames); {fix}",
+                num(lo),
+                num(hi)
+            ),
+        ));
+    }
+    let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
+    if !(reach <= TARGET_REACH * diagonal) {
+        let to = t.translate - bounds.center();
+        return Err(invalid(
+            "transform.translate",
+            format!(
+                "{spans} and reaches {} from the world origin, more than the {} \
+                 diagonals nephele renders (in single precision, positions that far no longer \
+                 resolve the cloud); set `transform: (translate: ({}, {}, {}))` to centre it \
+                 on the origin, or move the file's geometry nearer",
+                num(reach),
+                num(TARGET_REACH),
+                num(to.x),
+                num(to.y),
+                num(to.z)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `v` to 4 significant digits, as RON reads it: plain between 10⁻³ and 10⁶, else with an
+/// exponent (`4.123e20`).
+fn num(v: f64) -> String {
+    let v: f64 = format!("{v:.3e}").parse().unwrap_or(v);
+    if v == 0.0 || (1e-3..1e6).contains(&v.abs()) {
+        format!("{v:?}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// [`load_spec`]; with `check`, a mesh's transformed box is checked before the fit
+/// ([`check_target_box`]), so nothing is fitted or cached for a target that is refused.
+fn load(
+    scene: &Scene,
+    spec: &Target,
+    cache_dir: &Path,
+    check: bool,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
     let model_err = |source| SceneError::Model {
         scene: scene.path.clone(),
@@ -95,6 +213,18 @@ pub fn load_spec(
                 scene: scene.path.clone(),
                 source,
             })?;
+            if check {
+                let b = loaded.mesh.bounds();
+                let moved = (0..8).fold(Aabb::EMPTY, |moved, i| {
+                    let corner = DVec3::new(
+                        if i & 1 == 0 { b.min.x } else { b.max.x },
+                        if i & 2 == 0 { b.min.y } else { b.max.y },
+                        if i & 4 == 0 { b.min.z } else { b.max.z },
+                    );
+                    moved.grown(scene.file.transform.apply_point(corner))
+                });
+                check_target_box(scene, &moved, &spec_name(spec))?;
+            }
             let out = pipeline::fit(&cfg, &loaded).map_err(|source| SceneError::Fit {
                 scene: scene.path.clone(),
                 source,
