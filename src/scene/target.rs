@@ -136,6 +136,58 @@ pub fn check_target_box(scene: &Scene, bounds: &Aabb, what: &str) -> Result<(), 
     Ok(())
 }
 
+/// The diagonals of a mesh (in its file's units) the fit handles: its objective weighs surface
+/// distances in those units against dimensionless field values, so a much smaller or larger
+/// mesh fits badly (measured on a cube, 10 blobs: as at unit size from `1e-3` to `1e7`, a
+/// far worse fit at `1e-4`, none at all at `1e-5`).
+pub const FIT_MESH_DIAGONAL: (f64, f64) = (1e-2, 1e7);
+
+/// Refuse to fit a mesh (`bounds`, in its file's units) outside [`FIT_MESH_DIAGONAL`]; the
+/// error names the scene file, `field`, the mesh (`what`), its extent, the range and the fix
+/// (rescale the file, and keep its size in the shot with `transform.scale`).
+fn check_fit_mesh(scene: &Scene, field: &str, what: &str, bounds: &Aabb) -> Result<(), SceneError> {
+    let size = bounds.size();
+    let diagonal = size.length();
+    let (lo, hi) = FIT_MESH_DIAGONAL;
+    if diagonal >= lo && diagonal <= hi {
+        return Ok(());
+    }
+    let k = -diagonal.log10().round();
+    let scale = scene.file.transform.scale;
+    let in_shot = diagonal * scale;
+    let fix = if k.is_finite() {
+        let keep = if in_shot >= TARGET_DIAGONAL.0 && in_shot <= TARGET_DIAGONAL.1 {
+            format!(
+                ", and to keep its size in the shot set `transform: (scale: {})`",
+                num(scale * 10f64.powf(-k))
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "multiply the file's coordinates by {} (a diagonal of {}){keep}",
+            num(10f64.powf(k)),
+            num(diagonal * 10f64.powf(k)),
+        )
+    } else {
+        "rescale the file".to_string()
+    };
+    Err(SceneError::Invalid {
+        path: scene.path.clone(),
+        field: field.into(),
+        message: format!(
+            "{what} spans {} × {} × {} units (diagonal {}), outside the {} to {} units the \
+             fit handles (it would fit badly or not at all); {fix}",
+            num(size.x),
+            num(size.y),
+            num(size.z),
+            num(diagonal),
+            num(lo),
+            num(hi)
+        ),
+    })
+}
+
 /// `v` to 4 significant digits, as RON reads it: plain between 10⁻³ and 10⁶, else with an
 /// exponent (`4.123e20`).
 fn num(v: f64) -> String {
@@ -213,8 +265,10 @@ fn load(
                 scene: scene.path.clone(),
                 source,
             })?;
+            let b = loaded.mesh.bounds();
+            let field = if check { "target" } else { "animation.from" };
+            check_fit_mesh(scene, field, &spec_name(spec), &b)?;
             if check {
-                let b = loaded.mesh.bounds();
                 let moved = (0..8).fold(Aabb::EMPTY, |moved, i| {
                     let corner = DVec3::new(
                         if i & 1 == 0 { b.min.x } else { b.max.x },
