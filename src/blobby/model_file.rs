@@ -145,10 +145,11 @@ pub fn save_model(path: &Path, model: &BlobModel) -> Result<(), ModelError> {
 
 /// Read a model file: RON text, or the binary codec (detected by its magic number).
 pub fn load_model(path: &Path) -> Result<BlobModel, ModelError> {
-    let bytes = std::fs::read(path).map_err(|source| ModelError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes =
+        crate::input::read(path, crate::input::Limit::Model).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     if super::codec::is_encoded(&bytes) {
         return super::codec::decode(path, &bytes);
     }

@@ -56,8 +56,8 @@ pub fn run_encode(args: EncodeArgs) -> anyhow::Result<()> {
 
 /// Run `nephele decode`.
 pub fn run_decode(args: DecodeArgs) -> anyhow::Result<()> {
-    let bytes =
-        std::fs::read(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
+    let bytes = nephele::input::read(&args.input, nephele::input::Limit::Model)
+        .with_context(|| format!("reading {}", args.input.display()))?;
     anyhow::ensure!(
         codec::is_encoded(&bytes),
         "{}: not an encoded blob model (missing the 'NPHB' magic number); RON models need no decoding",

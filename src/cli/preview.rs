@@ -157,9 +157,11 @@ fn is_model_file(path: &Path) -> bool {
     {
         return true;
     }
+    // Only the first bytes are sniffed (a device or FIFO is not a model); the model or mesh
+    // reader then applies its own limit.
     let mut head = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+    nephele::input::open(path, nephele::input::Limit::Mesh)
+        .and_then(|(mut f, _)| std::io::Read::read(&mut f, &mut head))
         .is_ok_and(|n| nephele::blobby::codec::is_encoded(&head[..n]))
 }
 

@@ -27,8 +27,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // The stage covers the whole shot, whatever the scene's `frames` range.
     let shot = Shot::open(scene::load_scene(&args.scene)?, &opts)?;
-    shot.prepared()
-        .with_context(|| format!("loading the target of {}", args.scene.display()))?;
     let path = args
         .output
         .unwrap_or_else(|| shot.dir().join(format!("{}.usda", shot.scene().name)));
@@ -37,7 +35,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(std::path::Path::new("."));
     let stage = scene::usd::shot_stage(&shot, stage_dir)?;
-    let text = scene::usd::stage_text(&stage);
+    let text = scene::usd::stage_text(&stage)
+        .with_context(|| format!("writing the stage of {}", args.scene.display()))?;
     nephele::atomic::write_bytes_atomically(&path, text.as_bytes())
         .with_context(|| format!("writing {}", path.display()))?;
     let missing = (0..shot.total())

@@ -29,7 +29,7 @@ pub fn load(dir: &Path, plan: &Plan) -> bool {
     let Some(key) = d.blend_key() else {
         return false;
     };
-    let Ok(text) = std::fs::read_to_string(file(dir, key)) else {
+    let Ok(text) = crate::input::read_to_string(&file(dir, key), crate::input::Limit::Own) else {
         return false;
     };
     match ron::from_str::<Vec<[f64; 3]>>(&text) {
@@ -49,7 +49,7 @@ pub fn store(dir: &Path, plan: &Plan) -> Result<(), SceneError> {
         return Ok(());
     };
     let path = file(dir, key);
-    let held = std::fs::read_to_string(&path)
+    let held = crate::input::read_to_string(&path, crate::input::Limit::Own)
         .ok()
         .and_then(|text| ron::from_str::<Vec<[f64; 3]>>(&text).ok());
     if held.as_ref() == Some(&knots) {

@@ -152,10 +152,13 @@ pub struct Scene {
 
 /// Read, parse and validate a scene file; resolve its paths and check that the target exists.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text =
+        crate::input::read_to_string(path, crate::input::Limit::Scene).map_err(|source| {
+            SceneError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
     scene_from_str(path, &text)
 }
 

@@ -369,6 +369,13 @@ impl Shot {
 /// source is cached in the scene's output folder).
 fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Prepared, SceneError> {
     scene.file.transform.apply(&mut model.blobs);
+    // Before planning: a target the renderer cannot draw is refused, not rendered empty.
+    let bounds = blob_bounds(&model.blobs);
+    super::target::check_target_box(
+        scene,
+        &bounds,
+        &super::target::spec_name(&scene.file.target),
+    )?;
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,
@@ -390,7 +397,6 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
         scene: scene.path.clone(),
         source,
     })?;
-    let bounds = blob_bounds(&model.blobs);
     Ok(Prepared {
         model,
         plan,

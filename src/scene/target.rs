@@ -7,8 +7,11 @@
 use std::path::{Path, PathBuf};
 
 use super::{Scene, SceneError, Target};
+use glam::DVec3;
+
 use crate::blobby::BlobModel;
 use crate::blobby::model_file::MODEL_VERSION;
+use crate::geometry::Aabb;
 use crate::pipeline::{self, FIT_ALGORITHM_VERSION, FitConfig};
 
 /// Where the target came from.
@@ -22,12 +25,25 @@ pub enum TargetOrigin {
     Cached(PathBuf),
 }
 
-/// Load (or fit and cache in `cache_dir`) the scene's target model.
+/// The diagonals of the target box (world units, after the scene's `transform`) nephele
+/// renders: the renderer works in single precision with a few fixed tolerances, and a target
+/// far outside this range rendered empty or wrong frames (measured: faithful from about
+/// `4e-6` to `4e12`; the range keeps a margin of more than a decade on each side).
+pub const TARGET_DIAGONAL: (f64, f64) = (1e-4, 1e10);
+
+/// How far from the world origin the target box may reach, in diagonals of the box: farther,
+/// single-precision positions no longer resolve the cloud (measured: a target 2.5·10⁵
+/// diagonals away renders wrong, 2.5·10³ away as at the origin).
+pub const TARGET_REACH: f64 = 1e4;
+
+/// Load (or fit and cache in `cache_dir`) the scene's target model. A mesh whose box, moved
+/// by the scene's `transform`, is outside [`TARGET_DIAGONAL`] or [`TARGET_REACH`] is refused
+/// before it is fitted (see [`check_target_box`]).
 pub fn load_target(
     scene: &Scene,
     cache_dir: &Path,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
-    load_spec(scene, &scene.file.target, cache_dir)
+    load(scene, &scene.file.target, cache_dir, true)
 }
 
 /// Load (or fit and cache in `cache_dir`) the model `spec` of `scene` (its target, or a
@@ -36,6 +52,160 @@ pub fn load_spec(
     scene: &Scene,
     spec: &Target,
     cache_dir: &Path,
+) -> Result<(BlobModel, TargetOrigin), SceneError> {
+    load(scene, spec, cache_dir, false)
+}
+
+/// What `spec` names, for an error: `the mesh "…"` or `the model "…"`.
+pub(crate) fn spec_name(spec: &Target) -> String {
+    match spec {
+        Target::Model(p) => format!("the model {p:?}"),
+        Target::Fit { mesh, .. } => format!("the mesh {mesh:?}"),
+    }
+}
+
+/// Refuse a target box (`bounds`: world units, after the scene's `transform`) that the
+/// renderer cannot draw: a diagonal outside [`TARGET_DIAGONAL`], or a box reaching more than
+/// [`TARGET_REACH`] diagonals from the origin. The error names the scene file, the field, the
+/// extent found, the supported range, and the `transform` that brings the target into it.
+/// `what` names the model or mesh (see [`spec_name`]).
+pub fn check_target_box(scene: &Scene, bounds: &Aabb, what: &str) -> Result<(), SceneError> {
+    let t = &scene.file.transform;
+    let size = bounds.size();
+    let diagonal = size.length();
+    let (lo, hi) = TARGET_DIAGONAL;
+    let spans = format!(
+        "{what} spans {} × {} × {} world units{} (diagonal {})",
+        num(size.x),
+        num(size.y),
+        num(size.z),
+        if t.scale == 1.0 {
+            String::new()
+        } else {
+            format!(" after transform.scale {}", num(t.scale))
+        },
+        num(diagonal)
+    );
+    let invalid = |field: &str, message: String| SceneError::Invalid {
+        path: scene.path.clone(),
+        field: field.into(),
+        message,
+    };
+    // Written so that a NaN diagonal is refused too.
+    if !(diagonal >= lo && diagonal <= hi) {
+        // The power of ten that brings the diagonal to between about 0.3 and 3.
+        let factor = 10f64.powf(-diagonal.log10().round());
+        let scale = t.scale * factor;
+        let fix = if scale.is_finite() && scale > 0.0 {
+            format!(
+                "set `transform: (scale: {})` in the scene (a diagonal of {}) or rescale the file",
+                num(scale),
+                num(diagonal * factor)
+            )
+        } else {
+            "rescale the file".to_string()
+        };
+        return Err(invalid(
+            "target",
+            format!(
+                "{spans}, outside the {} to {} world units nephele renders (in single \
+                 precision, a target of this size renders empty or wrong frames); {fix}",
+                num(lo),
+                num(hi)
+            ),
+        ));
+    }
+    let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
+    if !(reach <= TARGET_REACH * diagonal) {
+        let to = t.translate - bounds.center();
+        return Err(invalid(
+            "transform.translate",
+            format!(
+                "{spans} and reaches {} from the world origin, more than the {} \
+                 diagonals nephele renders (in single precision, positions that far no longer \
+                 resolve the cloud); set `transform: (translate: ({}, {}, {}))` to centre it \
+                 on the origin, or move the file's geometry nearer",
+                num(reach),
+                num(TARGET_REACH),
+                num(to.x),
+                num(to.y),
+                num(to.z)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The diagonals of a mesh (in its file's units) the fit handles: its objective weighs surface
+/// distances in those units against dimensionless field values, so a much smaller or larger
+/// mesh fits badly (measured on a cube, 10 blobs: as at unit size from `1e-3` to `1e7`, a
+/// far worse fit at `1e-4`, none at all at `1e-5`).
+pub const FIT_MESH_DIAGONAL: (f64, f64) = (1e-2, 1e7);
+
+/// Refuse to fit a mesh (`bounds`, in its file's units) outside [`FIT_MESH_DIAGONAL`]; the
+/// error names the scene file, `field`, the mesh (`what`), its extent, the range and the fix
+/// (rescale the file, and keep its size in the shot with `transform.scale`).
+fn check_fit_mesh(scene: &Scene, field: &str, what: &str, bounds: &Aabb) -> Result<(), SceneError> {
+    let size = bounds.size();
+    let diagonal = size.length();
+    let (lo, hi) = FIT_MESH_DIAGONAL;
+    if diagonal >= lo && diagonal <= hi {
+        return Ok(());
+    }
+    let k = -diagonal.log10().round();
+    let scale = scene.file.transform.scale;
+    let in_shot = diagonal * scale;
+    let fix = if k.is_finite() {
+        let keep = if in_shot >= TARGET_DIAGONAL.0 && in_shot <= TARGET_DIAGONAL.1 {
+            format!(
+                ", and to keep its size in the shot set `transform: (scale: {})`",
+                num(scale * 10f64.powf(-k))
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "multiply the file's coordinates by {} (a diagonal of {}){keep}",
+            num(10f64.powf(k)),
+            num(diagonal * 10f64.powf(k)),
+        )
+    } else {
+        "rescale the file".to_string()
+    };
+    Err(SceneError::Invalid {
+        path: scene.path.clone(),
+        field: field.into(),
+        message: format!(
+            "{what} spans {} × {} × {} units (diagonal {}), outside the {} to {} units the \
+             fit handles (it would fit badly or not at all); {fix}",
+            num(size.x),
+            num(size.y),
+            num(size.z),
+            num(diagonal),
+            num(lo),
+            num(hi)
+        ),
+    })
+}
+
+/// `v` to 4 significant digits, as RON reads it: plain between 10⁻³ and 10⁶, else with an
+/// exponent (`4.123e20`).
+fn num(v: f64) -> String {
+    let v: f64 = format!("{v:.3e}").parse().unwrap_or(v);
+    if v == 0.0 || (1e-3..1e6).contains(&v.abs()) {
+        format!("{v:?}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// [`load_spec`]; with `check`, a mesh's transformed box is checked before the fit
+/// ([`check_target_box`]), so nothing is fitted or cached for a target that is refused.
+fn load(
+    scene: &Scene,
+    spec: &Target,
+    cache_dir: &Path,
+    check: bool,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
     let model_err = |source| SceneError::Model {
         scene: scene.path.clone(),
@@ -70,10 +240,12 @@ pub fn load_spec(
             let identity: Vec<u8> = if mesh.starts_with("builtin:") {
                 mesh.as_bytes().to_vec()
             } else {
-                std::fs::read(mesh).map_err(|source| SceneError::Io {
-                    path: PathBuf::from(mesh),
-                    source,
-                })?
+                crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
+                    |source| SceneError::Io {
+                        path: PathBuf::from(mesh),
+                        source,
+                    },
+                )?
             };
             let cfg = FitConfig {
                 blobs: *blobs,
@@ -93,6 +265,20 @@ pub fn load_spec(
                 scene: scene.path.clone(),
                 source,
             })?;
+            let b = loaded.mesh.bounds();
+            let field = if check { "target" } else { "animation.from" };
+            check_fit_mesh(scene, field, &spec_name(spec), &b)?;
+            if check {
+                let moved = (0..8).fold(Aabb::EMPTY, |moved, i| {
+                    let corner = DVec3::new(
+                        if i & 1 == 0 { b.min.x } else { b.max.x },
+                        if i & 2 == 0 { b.min.y } else { b.max.y },
+                        if i & 4 == 0 { b.min.z } else { b.max.z },
+                    );
+                    moved.grown(scene.file.transform.apply_point(corner))
+                });
+                check_target_box(scene, &moved, &spec_name(spec))?;
+            }
             let out = pipeline::fit(&cfg, &loaded).map_err(|source| SceneError::Fit {
                 scene: scene.path.clone(),
                 source,

@@ -41,7 +41,8 @@ pub struct Stage {
     pub sun: Sun,
     /// The sky.
     pub sky: Sky,
-    /// The VDB file of each frame, as written into the stage (relative to the stage's folder).
+    /// The VDB file of each frame, as written into the stage (relative to the stage's folder);
+    /// [`stage_text`] refuses one that cannot be a USD asset path ([`asset_ref`]).
     pub vdb_paths: Vec<String>,
     /// A line of documentation for the stage.
     pub doc: String,
@@ -50,17 +51,41 @@ pub struct Stage {
 /// The stage of `shot`'s whole shot (every frame, whatever its frame range), for a stage file
 /// in `stage_dir`: the cameras of every frame as rendered, the lights, and the frame VDBs of
 /// the shot's folder (written by `nephele render --formats vdb`), relative to `stage_dir`
-/// where possible.
+/// where possible. A VDB path that cannot be a USD asset path (a control character such as a
+/// newline in the output folder or `output.name`, or a name that is not UTF-8) is an error
+/// naming the scene file, the path and how to fix it.
 pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
     let scene = shot.scene();
     let (width, height) = shot.size();
+    let vdb_paths = (0..shot.total())
+        .map(|k| {
+            let vdb = frame_vdb(shot, shot.number(k));
+            let bad = |reason: String| SceneError::Invalid {
+                path: scene.path.clone(),
+                field: "output".into(),
+                message: format!(
+                    "the frame VDB path {vdb:?} {reason}, so the USD stage cannot refer to it; \
+                     rename the output folder (`output.dir`, or --frames-dir) or set \
+                     `output.name` (by default the scene file's name)"
+                ),
+            };
+            let rel = relative_to(&vdb, stage_dir);
+            let rel = rel.to_str().ok_or_else(|| bad("is not UTF-8".into()))?;
+            // USD's separator is `/`; elsewhere a backslash is part of a name.
+            let rel = if cfg!(windows) {
+                rel.replace('\\', "/")
+            } else {
+                rel.to_string()
+            };
+            asset_ref(&rel).map_err(|e| bad(e.reason))?;
+            Ok(rel)
+        })
+        .collect::<Result<_, SceneError>>()?;
+    // After the paths: a name the stage cannot hold is refused before the target is fitted.
     let cameras = (0..shot.total())
         .map(|k| Ok(CameraFrame::new(&shot.settings(k)?.camera, width, height)))
         .collect::<Result<_, SceneError>>()?;
     let length = shot.prepared()?.bounds.diagonal().max(1e-12);
-    let vdb_paths = (0..shot.total())
-        .map(|k| relative_to(&frame_vdb(shot, shot.number(k)), stage_dir))
-        .collect();
     Ok(Stage {
         fps: scene.file.shot.fps,
         start_frame: shot.number(0),
@@ -91,14 +116,14 @@ pub fn frame_vdb(shot: &Shot, frame: u32) -> PathBuf {
 }
 
 /// `path` relative to folder `base` (`./…` or with `..`), or absolute when they share no root.
-fn relative_to(path: &Path, base: &Path) -> String {
+fn relative_to(path: &Path, base: &Path) -> PathBuf {
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let (path, base) = (abs(path), abs(base));
     let (p, b): (Vec<Component>, Vec<Component>) =
         (path.components().collect(), base.components().collect());
     let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
     if common == 0 {
-        return path.to_string_lossy().into_owned();
+        return path;
     }
     let mut rel = PathBuf::new();
     if common == b.len() {
@@ -108,11 +133,48 @@ fn relative_to(path: &Path, base: &Path) -> String {
         rel.push("..");
     }
     p[common..].iter().for_each(|c| rel.push(c));
-    rel.to_string_lossy().replace('\\', "/")
+    rel
 }
 
-/// The `.usda` text of `stage`.
-pub fn stage_text(stage: &Stage) -> String {
+/// A path that cannot be written as a USD asset path.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{path:?} {reason}, which a USD asset path cannot hold")]
+pub struct AssetPathError {
+    /// The path.
+    pub path: String,
+    /// What is wrong with it (`holds a newline (control character 0x0a)`).
+    pub reason: String,
+}
+
+/// `path` as a USD asset path literal, written as usd-core writes it so that it reads back as
+/// exactly `path`: `@path@`, or, when the path holds an `@`, the triple-delimited
+/// `@@@path@@@` with each `@@@` inside written `\@@@` (the text format's grammar: `@@@`
+/// closes on the last three of 3 to 5 `@`, so a path may end in `@` or `@@`). A control
+/// character (a newline, a tab, …) cannot be in an asset path at all (usd-core refuses it):
+/// an error.
+pub fn asset_ref(path: &str) -> Result<String, AssetPathError> {
+    if let Some(c) = path.chars().find(|c| c.is_control()) {
+        let what = match c {
+            '\n' => "a newline",
+            '\r' => "a carriage return",
+            '\t' => "a tab",
+            _ => "a control character",
+        };
+        return Err(AssetPathError {
+            path: path.to_string(),
+            reason: format!("holds {what} (character U+{:04X})", c as u32),
+        });
+    }
+    Ok(if path.contains('@') {
+        format!("@@@{}@@@", path.replace("@@@", "\\@@@"))
+    } else {
+        format!("@{path}@")
+    })
+}
+
+/// The `.usda` text of `stage`; an error when one of its VDB paths cannot be an asset path
+/// ([`asset_ref`]; [`shot_stage`] never makes such a stage).
+pub fn stage_text(stage: &Stage) -> Result<String, AssetPathError> {
     let first = stage.start_frame as usize;
     let last = first + stage.cameras.len().max(1) - 1;
     let mut s = String::new();
@@ -131,9 +193,9 @@ pub fn stage_text(stage: &Stage) -> String {
     camera(&mut s, stage);
     sun(&mut s, &stage.sun);
     sky(&mut s, &stage.sky, &stage.sun);
-    volume(&mut s, &stage.vdb_paths, first);
+    volume(&mut s, &stage.vdb_paths, first)?;
     let _ = writeln!(s, "}}");
-    s
+    Ok(s)
 }
 
 fn camera(s: &mut String, stage: &Stage) {
@@ -263,7 +325,7 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
 
 /// The cloud: a `Volume` with two fields over the same frame VDBs — `density` (the fog volume)
 /// and `vel` (its velocity grid, world units per second, for motion blur).
-fn volume(s: &mut String, paths: &[String], first: usize) {
+fn volume(s: &mut String, paths: &[String], first: usize) -> Result<(), AssetPathError> {
     let _ = writeln!(s, "    def Volume \"cloud\"\n    {{");
     let _ = writeln!(s, "        rel field:density = </shot/cloud/density>");
     let _ = writeln!(s, "        rel field:vel = </shot/cloud/vel>\n");
@@ -276,17 +338,13 @@ fn volume(s: &mut String, paths: &[String], first: usize) {
         }
         let _ = writeln!(s, "            asset filePath.timeSamples = {{");
         for (k, p) in paths.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                "                {}: @{}@,",
-                first + k,
-                p.replace('@', "%40")
-            );
+            let _ = writeln!(s, "                {}: {},", first + k, asset_ref(p)?);
         }
         let _ = writeln!(s, "            }}");
         let _ = writeln!(s, "        }}");
     }
     let _ = writeln!(s, "    }}");
+    Ok(())
 }
 
 /// A row-vector `matrix4d`: rows are the three axes, then the translation.
@@ -311,9 +369,26 @@ fn num(v: f64) -> String {
     format!("{v}")
 }
 
-/// A USD string literal.
+/// A USD string literal (one line: a newline or another control character is escaped, as
+/// the text format's string escapes read it back).
 fn quoted(s: &str) -> String {
-    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            '"' => out.push_str("\\\""),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            // C0 controls and DEL as `\xHH` (the escape reads one byte: C1 controls stay UTF-8).
+            c if c.is_control() && (c as u32) < 0x80 => {
+                let _ = write!(out, "\\x{:02x}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }
 
 #[cfg(test)]
@@ -331,13 +406,19 @@ mod tests {
             "( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (1, 2, 3, 1) )"
         );
         assert_eq!(quoted("a \"b\""), "\"a \\\"b\\\"\"");
+        assert_eq!(quoted("a\nb\u{1}c\\"), "\"a\\nb\\x01c\\\\\"");
+        assert_eq!(asset_ref("out/a.vdb").unwrap(), "@out/a.vdb@");
+        assert_eq!(asset_ref("o@v/a.vdb").unwrap(), "@@@o@v/a.vdb@@@");
+        assert_eq!(asset_ref("a@@@b@").unwrap(), "@@@a\\@@@b@@@@");
+        let e = asset_ref("a\nb").unwrap_err();
+        assert!(e.to_string().contains("a newline"), "{e}");
         assert_eq!(
             relative_to(Path::new("/r/out/a.vdb"), Path::new("/r/out")),
-            "./a.vdb"
+            Path::new("./a.vdb")
         );
         assert_eq!(
             relative_to(Path::new("/r/out/a.vdb"), Path::new("/r/usd")),
-            "../out/a.vdb"
+            Path::new("../out/a.vdb")
         );
     }
 }

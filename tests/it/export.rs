@@ -538,6 +538,102 @@ fn usd_stage_camera_projects_like_the_renderer() {
     }
 }
 
+/// Frame VDBs in a folder whose name holds `@` (and `@@@`) resolve through usd-core to the very
+/// files; a scene file name with a newline (in the stage's `doc`) still gives a stage usd-core
+/// opens; a frame name with a newline is refused with a clear error and no stage.
+#[test]
+fn usd_stage_asset_paths_resolve_with_at_signs_and_odd_names() {
+    let (dir, path) = cloud_scene("usd-names", "output: (formats: [Vdb], voxel: 0.03)");
+    let nephele = |args: &[&std::ffi::OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_nephele"))
+            .args(args)
+            .current_dir(&*dir)
+            .output()
+            .unwrap()
+    };
+    // Written by the scene file itself: output.name keeps the frame names plain.
+    let odd = dir.join("odd\nscene.ron");
+    std::fs::write(
+        &odd,
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("voxel: 0.03)", "voxel: 0.03, name: \"shot\")"),
+    )
+    .unwrap();
+    for folder in ["out@v2", "a@b@@@c@"] {
+        let frames = dir.join(folder);
+        let o = nephele(&[
+            "render".as_ref(),
+            odd.as_os_str(),
+            "--frames".as_ref(),
+            "1".as_ref(),
+            "--output".as_ref(),
+            frames.as_os_str(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stage = dir.join("stage").join(format!("{folder}.usda"));
+        let o = nephele(&[
+            "usd".as_ref(),
+            odd.as_os_str(),
+            "--frames-dir".as_ref(),
+            frames.as_os_str(),
+            "-o".as_ref(),
+            stage.as_os_str(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = std::fs::read_to_string(&stage).unwrap();
+        assert!(!text.contains("%40"), "{text}");
+        let Some(python) = usd_python() else {
+            return;
+        };
+        let run = Command::new(&python)
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/usd_project.py"))
+            .arg(&stage)
+            .args(["48", "30", "1", "0", "0", "0"])
+            .output()
+            .unwrap();
+        if run.status.code() == Some(3) {
+            eprintln!(
+                "skipping the USD check: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            return;
+        }
+        assert!(
+            run.status.success(),
+            "{folder}: usd-core cannot open the stage:\n{}\n{text}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        assert_eq!(j["vdb"], format!("../{folder}/shot_0001.vdb"));
+        assert_eq!(j["fields"]["vel"]["vdb"], j["vdb"]);
+        let resolved = j["vdb_resolved"].as_str().unwrap();
+        assert!(!resolved.is_empty(), "{folder}: the VDB does not resolve");
+        assert_eq!(
+            std::fs::canonicalize(resolved).unwrap(),
+            std::fs::canonicalize(frames.join("shot_0001.vdb")).unwrap()
+        );
+    }
+    // A newline in the frame names (the default output.name is the scene file's name) cannot be
+    // in a USD asset path: refused, naming the scene and the fix, and no stage is written.
+    let bad = dir.join("bad\nname.ron");
+    std::fs::copy(&path, &bad).unwrap();
+    let stage = dir.join("stage/bad.usda");
+    let o = nephele(&[
+        "usd".as_ref(),
+        bad.as_os_str(),
+        "-o".as_ref(),
+        stage.as_os_str(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("bad\nname.ron") && err.contains("newline") && err.contains("output.name"),
+        "{err}"
+    );
+    assert!(!stage.exists());
+}
+
 #[test]
 fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
     use nephele::scene::{self, RenderOptions, SceneError};

@@ -473,3 +473,284 @@ fn bad_farm_requests_fail_before_any_work() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Run nephele in `dir` with `args`, killed (and the test failed) if it runs past `secs`
+/// seconds: an input that blocks (a FIFO with no writer) must fail fast, not hang.
+fn run_within(dir: &Path, args: &[&str], secs: u64) -> Output {
+    let mut child = bin()
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(secs) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("nephele {args:?} still running after {secs} s (blocked or unbounded read)");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// A FIFO at `path` (no writer ever opens it).
+fn fifo(path: &Path) {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only reads it.
+    assert_eq!(
+        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
+        0,
+        "mkfifo {path:?}"
+    );
+}
+
+/// [`cube_obj`] with every coordinate multiplied by `scale`.
+fn scaled_cube(scale: f64) -> String {
+    cube_obj()
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(v) => {
+                let c: Vec<String> = v
+                    .split(' ')
+                    .map(|x| format!("{:e}", x.parse::<f64>().unwrap() * scale))
+                    .collect();
+                format!("v {}\n", c.join(" "))
+            }
+            None => format!("{l}\n"),
+        })
+        .collect()
+}
+
+/// Devices, FIFOs, oversize files and targets too large or too small to render (issue 48):
+/// each fails fast (no unbounded read, no read blocked forever), exits non-zero with a message
+/// naming the file, and leaves no output behind.
+#[test]
+fn unreadable_and_unrenderable_inputs_fail_fast_naming_the_file() {
+    let dir = scratch("inputs");
+    std::os::unix::fs::symlink("/dev/zero", dir.join("zero.obj")).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", dir.join("zero.ron")).unwrap();
+    fifo(&dir.join("fifo.ron"));
+    fifo(&dir.join("fifo.obj"));
+    // Sparse: 16 MiB + 1 byte on paper, nothing on disk.
+    std::fs::File::create(dir.join("big.ron"))
+        .unwrap()
+        .set_len((16 << 20) + 1)
+        .unwrap();
+    std::fs::write(dir.join("huge.obj"), scaled_cube(1e20)).unwrap();
+    std::fs::write(dir.join("tiny.obj"), scaled_cube(1e-20)).unwrap();
+    std::fs::write(dir.join("cube.obj"), cube_obj()).unwrap();
+    let fit = "blobs: 10, candidates: 200, samples: 5000";
+    let scenes = [
+        (
+            "zero_mesh.ron",
+            format!("Scene(target: Fit(mesh: \"zero.obj\", {fit}))"),
+        ),
+        (
+            "dev_zero_mesh.ron",
+            format!("Scene(target: Fit(mesh: \"/dev/zero\", {fit}))"),
+        ),
+        (
+            "fifo_mesh.ron",
+            format!("Scene(target: Fit(mesh: \"fifo.obj\", {fit}))"),
+        ),
+        (
+            "huge_mesh.ron",
+            format!("Scene(target: Fit(mesh: \"huge.obj\", {fit}))"),
+        ),
+        (
+            "tiny_mesh.ron",
+            format!("Scene(target: Fit(mesh: \"tiny.obj\", {fit}))"),
+        ),
+        (
+            "cube_far_too_big.ron",
+            format!("Scene(target: Fit(mesh: \"cube.obj\", {fit}), transform: (scale: 1e20))"),
+        ),
+        (
+            "cube_far_too_small.ron",
+            format!("Scene(target: Fit(mesh: \"cube.obj\", {fit}), transform: (scale: 1e-20))"),
+        ),
+        (
+            "huge_model.ron",
+            "Scene(target: Model(\"builtin:cumulus\"), transform: (scale: 1e20))".to_string(),
+        ),
+        (
+            "far_model.ron",
+            "Scene(target: Model(\"builtin:cumulus\"), transform: (translate: (1e9, 0.0, 0.0)))"
+                .to_string(),
+        ),
+    ];
+    for (name, body) in &scenes {
+        std::fs::write(dir.join(name), body).unwrap();
+    }
+    let size = ["--frames", "1", "--preview", "--output", "out"];
+    let mut cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (
+            vec!["render", "/dev/zero"],
+            vec!["/dev/zero", "not a regular file"],
+        ),
+        (
+            vec!["render", "zero.ron"],
+            vec!["zero.ron", "not a regular file"],
+        ),
+        (
+            vec!["render", "fifo.ron"],
+            vec!["fifo.ron", "not a regular file"],
+        ),
+        (
+            vec!["render", "big.ron"],
+            vec!["big.ron", "more than the 16 MiB"],
+        ),
+        (
+            vec!["render", "zero_mesh.ron"],
+            vec!["zero.obj", "not a regular file"],
+        ),
+        (
+            vec!["render", "dev_zero_mesh.ron"],
+            vec!["/dev/zero", "not a regular file"],
+        ),
+        (
+            vec!["render", "fifo_mesh.ron"],
+            vec!["fifo.obj", "not a regular file"],
+        ),
+        (
+            vec!["render", "huge_mesh.ron"],
+            vec![
+                "huge_mesh.ron",
+                "target",
+                "huge.obj",
+                "diagonal 1.732e20",
+                "by 1e-20",
+            ],
+        ),
+        (
+            vec!["render", "tiny_mesh.ron"],
+            vec![
+                "tiny_mesh.ron",
+                "target",
+                "tiny.obj",
+                "diagonal 1.732e-20",
+                "by 1e20",
+            ],
+        ),
+        (
+            vec!["render", "cube_far_too_big.ron"],
+            vec![
+                "cube_far_too_big.ron",
+                "cube.obj",
+                "diagonal 1.732e20",
+                "1e-4 to 1e10",
+            ],
+        ),
+        (
+            vec!["render", "cube_far_too_small.ron"],
+            vec![
+                "cube_far_too_small.ron",
+                "cube.obj",
+                "diagonal 1.732e-20",
+                "scale: 1.0)",
+            ],
+        ),
+        (
+            vec!["render", "huge_model.ron"],
+            vec!["huge_model.ron", "target", "1e-4 to 1e10", "transform"],
+        ),
+        (
+            vec!["render", "far_model.ron"],
+            vec!["far_model.ron", "transform.translate", "origin"],
+        ),
+        (
+            vec!["fit", "zero.obj", "-o", "m.ron"],
+            vec!["zero.obj", "not a regular file"],
+        ),
+        (
+            vec!["fit", "fifo.obj", "-o", "m.ron"],
+            vec!["fifo.obj", "not a regular file"],
+        ),
+        (
+            vec!["decode", "/dev/zero", "-o", "m.ron"],
+            vec!["/dev/zero", "not a regular file"],
+        ),
+        (
+            vec!["decode", "fifo.ron", "-o", "m.ron"],
+            vec!["fifo.ron", "not a regular file"],
+        ),
+        (
+            vec!["encode", "zero.ron", "-o", "m.blob"],
+            vec!["zero.ron", "not a regular file"],
+        ),
+        (
+            vec!["prepare", "fifo_mesh.ron", "--output", "out"],
+            vec!["fifo.obj"],
+        ),
+        (
+            vec!["usd", "huge_mesh.ron", "-o", "out/s.usda"],
+            vec!["huge.obj", "diagonal"],
+        ),
+    ];
+    for (args, _) in cases.iter_mut() {
+        if args[0] == "render" {
+            args.extend(size);
+        }
+    }
+    let mut inputs = vec![
+        "zero.obj", "zero.ron", "fifo.ron", "fifo.obj", "big.ron", "huge.obj",
+    ];
+    inputs.extend(["tiny.obj", "cube.obj"]);
+    inputs.extend(scenes.iter().map(|s| s.0));
+    for (args, expect) in &cases {
+        let out = run_within(&dir, args, 60);
+        let t = text(&out);
+        assert!(!out.status.success(), "{args:?} succeeded:\n{t}");
+        assert!(!t.contains("panicked"), "{args:?} panicked:\n{t}");
+        for e in expect {
+            assert!(t.contains(e), "{args:?}: expected {e:?} in:\n{t}");
+        }
+        assert_nothing_left(&dir, &inputs);
+    }
+    // The transform the error suggests renders the target, and not an empty frame.
+    let out = run_within(
+        &dir,
+        &["render", "cube_far_too_small.ron", "--output", "out"],
+        60,
+    );
+    let t = text(&out);
+    let scale = t
+        .split("transform: (scale: ")
+        .nth(1)
+        .and_then(|r| r.split(')').next())
+        .unwrap_or_else(|| panic!("no transform suggested:\n{t}"));
+    std::fs::write(
+        dir.join("fixed.ron"),
+        format!(
+            "Scene(target: Fit(mesh: \"cube.obj\", {fit}), transform: (scale: {scale}), \
+             shot: (width: 64, height: 36, fps: 4, seconds: 1.0))"
+        ),
+    )
+    .unwrap();
+    let out = run_within(
+        &dir,
+        &[
+            "render",
+            "fixed.ron",
+            "--frames",
+            "4",
+            "--output",
+            "out",
+            "--stats",
+        ],
+        300,
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let stats = std::fs::read_to_string(dir.join("out/fixed_stats.csv")).unwrap();
+    let row: Vec<&str> = stats.lines().nth(1).unwrap().split(',').collect();
+    let coverage: f64 = row[6].parse().unwrap();
+    assert!(
+        coverage > 0.05,
+        "the rescaled target renders empty:\n{stats}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

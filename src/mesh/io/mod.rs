@@ -64,10 +64,11 @@ impl MeshFormat {
 /// [`super::load`] does that.
 pub fn read_mesh(path: &Path) -> Result<Mesh, MeshError> {
     let format = MeshFormat::from_path(path)?;
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes =
+        crate::input::read(path, crate::input::Limit::Mesh).map_err(|source| MeshError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     parse_mesh_bytes(&bytes, format, path)
 }
 
