@@ -50,9 +50,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if missing > 0 {
         eprintln!(
-            "note: {missing} frame VDBs are not in {} yet; render them with `nephele render {} --formats vdb`",
+            "note: {missing} frame VDBs are not in {} yet; add them with `nephele render {} --formats vdb` (it writes the VDBs and keeps the frames' other files)",
             shot.dir().display(),
-            args.scene.display()
+            nephele::farm::shell_quote(&args.scene.to_string_lossy())
         );
     }
     Ok(())

@@ -1,4 +1,5 @@
 //! Tests of the job files: hostile values quoted or refused, scripts parsed by bash.
+use super::value::sbatch_quote;
 use super::*;
 use std::path::Path;
 use std::process::Command;

@@ -79,7 +79,8 @@ impl FrameLock {
                 Ok(()) => {}
                 Err(std::fs::TryLockError::WouldBlock) => {
                     let mut holder = String::new();
-                    let _ = file.read_to_string(&mut holder);
+                    // One line is all a holder writes; never more than that is read.
+                    let _ = (&file).take(4096).read_to_string(&mut holder);
                     let holder = holder.trim();
                     return Err(Refused::Held(if holder.is_empty() {
                         "a process that has not yet said who it is".into()
