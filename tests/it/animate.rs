@@ -244,8 +244,10 @@ fn aggregation_scales_to_a_thousand_blobs() {
     let t = std::time::Instant::now();
     let plan = aggregation(&model, 1);
     let _ = plan.frame(10);
+    // A guard against an all-pairs blow-up or a hang, not a benchmark (the machine may be
+    // loaded): about 1 s on an idle 2-core machine.
     let secs = t.elapsed().as_secs_f64();
-    assert!(secs < 5.0, "planning 1000 blobs took {secs} s");
+    assert!(secs < 60.0, "planning 1000 blobs took {secs} s");
     // Repulsion spread the blobs of the first keyframe: no two centres coincide.
     let key0 = &plan.keyframes()[0];
     let bounds = blob_bounds(key0);
