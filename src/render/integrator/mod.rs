@@ -19,7 +19,7 @@
 //! length `h` is sampled at `s + ξ·h` (one jitter `ξ` per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
-//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
+//! media. A ray stops when `T <` `MIN_TRANSMITTANCE`; one that leaves the cloud adds the sky
 //! light scattered straight on along it ([`Shading::forward_sky`]).
 //!
 //! Files: `march` (one ray), `tiles` (the tile driver and the frame's buffers),

@@ -2,6 +2,11 @@
 //! coarse and fine segments, the energy-conserving step, the lighting of each sample through
 //! [`ShadowDepths`] and [`Shading`], and the running mean of a pixel's rays ([`PixelSum`]).
 
+mod pixel;
+
+use pixel::PixelPasses;
+pub(crate) use pixel::{PixelResult, PixelSum};
+
 use glam::Vec3A;
 
 use crate::render::camera::Ray;
@@ -21,16 +26,6 @@ pub(crate) const MAX_OPTICAL_STEP: f32 = 1.0;
 
 /// Most samples one ray may take (guards against unbounded intervals).
 const MAX_STEPS: u32 = 1_000_000;
-
-/// What one pixel's march produced.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PixelResult {
-    pub(crate) rgb: Vec3A,
-    pub(crate) transmittance: f32,
-    pub(crate) depth: f32,
-    /// The render passes (sun, sky, multiple), when asked for.
-    pub(crate) passes: [Vec3A; 3],
-}
 
 /// One ray's march ([`march`], monomorphised for what it accumulates).
 pub(crate) type MarchFn<M, L> = fn(
@@ -104,7 +99,7 @@ pub(crate) fn march<
     let stride = medium.empty_stride().min(coarse);
     let (mut t_acc, mut rgb, mut depth_sum, mut tau) = (1.0f32, Vec3A::ZERO, 0.0f32, 0.0f32);
     let mut budget = MAX_STEPS;
-    let mut passes = [Vec3A::ZERO; 3];
+    let mut passes = PixelPasses::ZERO;
     'intervals: for n in 0..medium.intervals(scratch).len() {
         let [a, b] = medium.intervals(scratch)[n];
         // `last_empty`: where the medium was last seen empty; a coarse hit re-marches from it.
@@ -185,9 +180,9 @@ pub(crate) fn march<
                 let k = absorbed * shading.albedo;
                 rgb += light.total() * k;
                 if PASSES {
-                    passes[0] += light.sun() * k;
-                    passes[1] += light.sky() * k;
-                    passes[2] += light.multiple() * k;
+                    passes.sun += light.sun() * k;
+                    passes.sky += light.sky() * k;
+                    passes.multiple += light.multiple() * k;
                 }
             }
             tau += sigma * len;
@@ -204,7 +199,7 @@ pub(crate) fn march<
         let forward = shading.forward_sky(ray.dir, tau);
         rgb += forward;
         // Sky light scattered straight on is the sky's single scattering (its forward lobe).
-        passes[1] += forward;
+        passes.sky += forward;
     }
     let coverage = 1.0 - t_acc;
     PixelResult {
@@ -216,54 +211,5 @@ pub(crate) fn march<
             f32::INFINITY
         },
         passes,
-    }
-}
-
-/// The running mean of a pixel's rays (coverage-weighted depth).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PixelSum {
-    acc: PixelResult,
-    depth_w: f32,
-}
-
-impl PixelSum {
-    pub(crate) fn new() -> PixelSum {
-        PixelSum {
-            acc: PixelResult {
-                rgb: Vec3A::ZERO,
-                transmittance: 0.0,
-                depth: 0.0,
-                passes: [Vec3A::ZERO; 3],
-            },
-            depth_w: 0.0,
-        }
-    }
-
-    pub(crate) fn add(&mut self, r: &PixelResult) {
-        self.acc.rgb += r.rgb;
-        self.acc.transmittance += r.transmittance;
-        for (a, p) in self.acc.passes.iter_mut().zip(r.passes) {
-            *a += p;
-        }
-        if r.depth.is_finite() {
-            let c = 1.0 - r.transmittance;
-            self.acc.depth += r.depth * c;
-            self.depth_w += c;
-        }
-    }
-
-    /// The mean of `n` rays added.
-    pub(crate) fn mean(self, n: u32) -> PixelResult {
-        let mut acc = self.acc;
-        let inv = 1.0 / n as f32;
-        acc.rgb *= inv;
-        acc.transmittance *= inv;
-        acc.passes = acc.passes.map(|p| p * inv);
-        acc.depth = if self.depth_w > 0.0 {
-            acc.depth / self.depth_w
-        } else {
-            f32::INFINITY
-        };
-        acc
     }
 }
