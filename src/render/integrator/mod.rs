@@ -19,11 +19,13 @@
 //! length `h` is sampled at `s + ξ·h` (one jitter `ξ` per pixel) and integrated with the
 //! energy-conserving form `L += T·(1 − e^{−σh})·albedo·L_in`, `T ·= e^{−σh}` (Hillaire 2015,
 //! "Physically based and unified volumetric rendering in Frostbite"), exact for piecewise-constant
-//! media. A ray stops when `T <` [`MIN_TRANSMITTANCE`]; one that leaves the cloud adds the sky
-//! light scattered straight on along it ([`Shading::forward_sky`]).
+//! media. A ray stops when `T < 10⁻³` (`MIN_TRANSMITTANCE`); one that leaves the cloud adds the
+//! sky light scattered straight on along it ([`Shading::forward_sky`]).
 //!
-//! Files: `march` (one ray), `tiles` (the tile driver and the frame's buffers),
-//! [`frame_renderer`] (the blob pipeline and the shot's reuse), [`motion_blur`] (the shutter);
+//! Files: `march` (one ray: the loop in `mod.rs` over the stepper of `steps.rs`, which says
+//! where the samples go, and the accumulator of `accumulate.rs`, which says what each adds; a
+//! pixel's results and its passes in `pixel.rs`), `tiles` (the tile driver and the frame's
+//! buffers), [`frame_renderer`] (the blob pipeline and the shot's reuse), [`motion_blur`] (the shutter);
 //! the pixel's rays come from [`crate::render::sampler`].
 //!
 //! What a frame is rendered into is a [`Film`] ([`crate::render::output::film`]): one tile driver

@@ -23,10 +23,17 @@ struct Band<'a> {
     rgb: &'a mut [[f32; 3]],
     alpha: &'a mut [f32],
     depth: &'a mut [f32],
-    /// Sun, sky and multiple, when the film asks for passes.
-    passes: Option<[&'a mut [[f32; 3]]; 3]>,
+    /// The render passes' rows, when the film asks for passes.
+    passes: Option<PassRows<'a>>,
     /// The ID-matte ranks, when it asks for mattes.
     ranks: Option<&'a mut [[Rank; RANKS]]>,
+}
+
+/// One band's rows of the frame's render passes ([`crate::render::Passes`]).
+struct PassRows<'a> {
+    sun: &'a mut [[f32; 3]],
+    sky: &'a mut [[f32; 3]],
+    multiple: &'a mut [[f32; 3]],
 }
 
 impl Band<'_> {
@@ -36,10 +43,10 @@ impl Band<'_> {
         self.rgb[i] = p.rgb.to_array();
         self.alpha[i] = 1.0 - p.transmittance;
         self.depth[i] = p.depth;
-        if let Some([sun, sky, multiple]) = &mut self.passes {
-            sun[i] = p.passes[0].to_array();
-            sky[i] = p.passes[1].to_array();
-            multiple[i] = p.passes[2].to_array();
+        if let Some(rows) = &mut self.passes {
+            rows.sun[i] = p.passes.sun.to_array();
+            rows.sky[i] = p.passes.sky.to_array();
+            rows.multiple[i] = p.passes.multiple.to_array();
         }
     }
 }
@@ -87,13 +94,13 @@ pub(crate) fn render_film<S: Send>(
         mattes,
         ..
     } = &mut frame;
-    let passes: Vec<Option<[&mut [[f32; 3]]; 3]>> = match passes {
+    let passes: Vec<Option<PassRows>> = match passes {
         Some(p) => {
             let crate::render::Passes { sun, sky, multiple } = &mut **p;
             sun.chunks_mut(band_px)
                 .zip(sky.chunks_mut(band_px))
                 .zip(multiple.chunks_mut(band_px))
-                .map(|((a, b), c)| Some([a, b, c]))
+                .map(|((sun, sky), multiple)| Some(PassRows { sun, sky, multiple }))
                 .collect()
         }
         None => (0..bands).map(|_| None).collect(),
