@@ -333,10 +333,13 @@ fn frame_renderer_reuses_without_changing_a_bit() {
     assert_eq!(frame_hash(frame), frame_hash(&render_frame(&evolved, &a)));
 }
 
-/// Hash of the 64×36 frame above (update deliberately when the renderer's output changes, with
-/// the README's Mitsuba figures re-measured; last: the billows' band bounded by the lift of the
-/// largest push, so the march steps coarsely where no billow top can reach).
-const PINNED: u64 = 0x0a1e_1b23_c428_cbf7;
+/// Hash of the 64×36 frame of `seeded_frame_is_pinned_and_thread_count_independent` (update
+/// deliberately when the renderer's output changes, with the README's Mitsuba figures
+/// re-measured; last: the billows' band bounded by the lift of the largest push, so the march
+/// steps coarsely where no billow top can reach). Part of the render-version fingerprint
+/// (`scene::pinned_hashes_move_only_with_the_render_version`): a new value needs a new
+/// `nephele::RENDER_VERSION`.
+pub(crate) const PINNED: u64 = 0x0a1e_1b23_c428_cbf7;
 
 #[test]
 fn exr_reads_back_with_channels_and_values() {
