@@ -3,7 +3,8 @@
 # and OpenEXR (an EXR reader we did not write), the nephele CLI and the abi3 wheel built in
 # release into <target> ($CARGO_TARGET_DIR if set, else the repository's target/), the wheel
 # installed, then pytest.
-# Skips (exit 0, said plainly) only when the Python package index cannot be reached.
+# Skips (exit 0, said plainly) only when the Python package index cannot be reached; under
+# NEPHELE_REQUIRE_READERS=1 (as .ci/run sets: CI reaches the index) it fails (exit 1) then.
 # Usage: bash python/ci.sh [pytest args]   (from anywhere; needs cargo and python3 >= 3.9 with venv)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +28,12 @@ if ! "$VENV/bin/python" -c 'import maturin, pytest, numpy, OpenEXR' 2>/dev/null;
   if ! "$VENV/bin/pip" install -q --disable-pip-version-check "maturin>=1.5,<2" pytest numpy "OpenEXR>=3.2"; then
     # Tell an unreachable index (skip) from a real install failure (fail).
     if ! "$VENV/bin/pip" download -q --no-deps --disable-pip-version-check -d "$TARGET/py-probe" pip >/dev/null 2>&1; then
-      echo "SKIPPED python/ci.sh: the Python package index is unreachable, so maturin, pytest, numpy and OpenEXR cannot be installed; the Python bindings were not tested"
+      why="the Python package index is unreachable, so maturin, pytest, numpy and OpenEXR cannot be installed; the Python bindings were not tested"
+      if [ "${NEPHELE_REQUIRE_READERS:-}" = 1 ]; then
+        echo "FAILED python/ci.sh: $why (NEPHELE_REQUIRE_READERS=1)" >&2
+        exit 1
+      fi
+      echo "SKIPPED python/ci.sh: $why"
       exit 0
     fi
     echo "python/ci.sh: pip could not install maturin, pytest, numpy, OpenEXR (see above)" >&2

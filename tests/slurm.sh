@@ -23,7 +23,8 @@
 #
 # Usage (as root): tests/slurm.sh [NEPHELE_BINARY]   (default: target/release/nephele)
 # Without root or the Debian packages (slurmctld slurmd slurm-client munge) it prints
-# "farm test skipped: <why>" and exits 0.
+# "farm test skipped: <why>" and exits 0, or, under NEPHELE_REQUIRE_READERS=1 (as .ci/run sets:
+# CI is root on a clean Debian that can install them), "farm test FAILED: <why>" and exits 1.
 set -euo pipefail
 
 repo=$(cd "$(dirname "$0")/.." && pwd)
@@ -31,6 +32,10 @@ bin=${1:-$repo/target/release/nephele}
 scene=$repo/scenes/duck-diffusion.ron
 
 skip() {
+	if [ "${NEPHELE_REQUIRE_READERS:-}" = 1 ]; then
+		echo "farm test FAILED: $* (NEPHELE_REQUIRE_READERS=1: Slurm must be there)" >&2
+		exit 1
+	fi
 	echo "farm test skipped: $*"
 	exit 0
 }

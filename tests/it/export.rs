@@ -1,8 +1,11 @@
 //! Export: the density grid read back by OpenVDB itself (`tools/vdb_dump.py` under the system
-//! python with Debian's `python3-openvdb`; skipped with a message where it is missing), the
-//! Mitsuba `.vol` layout, and the grid against the renderer's density.
+//! python with Debian's `python3-openvdb`), the USD stage read by usd-core (`tools/usd_project.py`
+//! in `target/usd-venv`), the Mitsuba `.vol` layout, and the grid against the renderer's density.
+//! A check whose reader is missing skips with a message, or fails under
+//! `NEPHELE_REQUIRE_READERS=1` (`readers_support`).
 
 use crate::exr_support;
+use crate::readers_support::skip_or_fail;
 use crate::temp_support;
 
 use std::path::{Path, PathBuf};
@@ -112,14 +115,20 @@ fn openvdb_grid(path: &Path, name: &str) -> Option<(serde_json::Value, Voxels)> 
     let run = match run {
         Ok(r) => r,
         Err(e) => {
-            eprintln!("skipping the OpenVDB check: /usr/bin/python3 cannot run ({e})");
+            skip_or_fail(
+                "OpenVDB",
+                &format!("/usr/bin/python3 cannot run ({e}); install Debian's python3-openvdb"),
+            );
             return None;
         }
     };
     if run.status.code() == Some(3) {
-        eprintln!(
-            "skipping the OpenVDB check: {} (install Debian's python3-openvdb)",
-            String::from_utf8_lossy(&run.stderr).trim()
+        skip_or_fail(
+            "OpenVDB",
+            &format!(
+                "{} (install Debian's python3-openvdb)",
+                String::from_utf8_lossy(&run.stderr).trim()
+            ),
         );
         return None;
     }
@@ -428,10 +437,13 @@ fn usd_python() -> Option<PathBuf> {
     if python.is_file() {
         Some(python)
     } else {
-        eprintln!(
-            "skipping the USD check: {} not found (`python3 -m venv target/usd-venv && \
-             target/usd-venv/bin/pip install usd-core`, as .ci/run does)",
-            python.display()
+        skip_or_fail(
+            "usd-core",
+            &format!(
+                "{} not found (`python3 -m venv target/usd-venv && \
+                 target/usd-venv/bin/pip install usd-core`, as .ci/run does)",
+                python.display()
+            ),
         );
         None
     }
@@ -485,10 +497,7 @@ fn usd_stage_camera_projects_like_the_renderer() {
         });
         let run = cmd.output().unwrap();
         if run.status.code() == Some(3) {
-            eprintln!(
-                "skipping the USD check: {}",
-                String::from_utf8_lossy(&run.stderr)
-            );
+            skip_or_fail("usd-core", String::from_utf8_lossy(&run.stderr).trim());
             return;
         }
         assert!(
@@ -593,10 +602,7 @@ fn usd_stage_asset_paths_resolve_with_at_signs_and_odd_names() {
             .output()
             .unwrap();
         if run.status.code() == Some(3) {
-            eprintln!(
-                "skipping the USD check: {}",
-                String::from_utf8_lossy(&run.stderr)
-            );
+            skip_or_fail("usd-core", String::from_utf8_lossy(&run.stderr).trim());
             return;
         }
         assert!(

@@ -2,11 +2,13 @@
 //! frame numbers from `shot.start_frame` end to end (files, `--frames` lists, EXR, USD, farm
 //! chunks, stats), colour metadata and ACEScg, and bad input refused with located errors. The
 //! EXR headers are read with the `exr` crate and, where installed, with OpenImageIO's
-//! `oiiotool --info -v` (Debian `openimageio-tools`; the check says it skipped when absent).
+//! `oiiotool --info -v` (Debian `openimageio-tools`; the check says it skipped when absent, or
+//! fails under `NEPHELE_REQUIRE_READERS=1`: `readers_support`).
 //! Every scene is the procedural `builtin:cumulus` at a few dozen pixels.
 
 use crate::cli_support;
 use crate::exr_support;
+use crate::readers_support::skip_or_fail;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -58,7 +60,8 @@ fn text_attr(path: &Path, key: &str) -> String {
     }
 }
 
-/// `oiiotool --info -v PATH`, or `None` (with a message) when OpenImageIO is not installed.
+/// `oiiotool --info -v PATH`, or `None` (after [`skip_or_fail`]) when OpenImageIO is not
+/// installed.
 fn oiiotool_info(path: &Path) -> Option<String> {
     match Command::new("oiiotool")
         .args(["--info", "-v"])
@@ -68,7 +71,10 @@ fn oiiotool_info(path: &Path) -> Option<String> {
         Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
         Ok(o) => panic!("oiiotool failed: {}", text(&o)),
         Err(e) => {
-            eprintln!("oiiotool check skipped: {e} (install Debian openimageio-tools)");
+            skip_or_fail(
+                "oiiotool",
+                &format!("{e} (install Debian openimageio-tools)"),
+            );
             None
         }
     }

@@ -9,6 +9,7 @@ mod eval_support;
 mod exr_support;
 mod look_support;
 mod mesh_checks;
+mod readers_support;
 mod shared_models;
 mod temp_support;
 

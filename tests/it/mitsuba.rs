@@ -8,7 +8,8 @@
 //! `tools/mitsuba_compare.py` renders the grid in Mitsuba and prints the comparison.
 //!
 //! Always-run test: a small comparison when Python with `mitsuba` is importable (set
-//! `NEPHELE_PYTHON` to pick the interpreter), otherwise it prints that it skipped.
+//! `NEPHELE_PYTHON` to pick the interpreter; `.ci/run` makes `target/mitsuba-venv`), otherwise
+//! it prints that it skipped, or fails under `NEPHELE_REQUIRE_READERS=1` (`readers_support`).
 //! Full comparison (documented in the README):
 //! `cargo test --release --test it -- --ignored --nocapture mitsuba::mitsuba_full`
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
@@ -24,6 +25,8 @@
 #[path = "mitsuba_support/grid_medium.rs"]
 mod grid_medium;
 
+use crate::readers_support::skip_or_fail;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -34,18 +37,31 @@ use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
 use nephele::render::{BlobMedium, Film, LightGrid, RenderSettings, SkyDome, render_medium};
 use nephele::scene::{RenderOptions, Shot, load_scene};
 
-/// The Python interpreter with mitsuba, if any.
+/// The Python interpreter with mitsuba and numpy: `$NEPHELE_PYTHON`, the venv `.ci/run` makes
+/// in `target/mitsuba-venv`, `/tmp/mi/bin/python` or `python3`, the first that imports them;
+/// `None` (after [`skip_or_fail`]) when none does.
 fn python() -> Option<String> {
-    let candidates = std::env::var("NEPHELE_PYTHON")
-        .ok()
-        .into_iter()
-        .chain(["/tmp/mi/bin/python".to_string(), "python3".to_string()]);
-    candidates.into_iter().find(|p| {
+    let venv = repo().join("target/mitsuba-venv/bin/python");
+    let candidates = std::env::var("NEPHELE_PYTHON").ok().into_iter().chain([
+        venv.to_string_lossy().into_owned(),
+        "/tmp/mi/bin/python".to_string(),
+        "python3".to_string(),
+    ]);
+    let found = candidates.into_iter().find(|p| {
         Command::new(p)
             .args(["-c", "import mitsuba, numpy"])
             .output()
             .is_ok_and(|o| o.status.success())
-    })
+    });
+    if found.is_none() {
+        skip_or_fail(
+            "Mitsuba",
+            "no Python with `mitsuba` and `numpy` (`python3 -m venv target/mitsuba-venv && \
+             target/mitsuba-venv/bin/pip install mitsuba numpy`, as .ci/run does; \
+             NEPHELE_PYTHON selects the interpreter)",
+        );
+    }
+    found
 }
 
 fn write_f32(path: &Path, v: impl IntoIterator<Item = f32>) {
@@ -285,9 +301,6 @@ fn number(json: &str, key: &str) -> f64 {
 #[test]
 fn single_scattering_matches_mitsuba() {
     let Some(py) = python() else {
-        eprintln!(
-            "skipping the Mitsuba comparison: no Python with `mitsuba` and `numpy` (pip install mitsuba numpy; NEPHELE_PYTHON selects the interpreter)"
-        );
         return;
     };
     let dir = std::env::temp_dir().join(format!("nephele-mitsuba-{}", std::process::id()));
@@ -338,7 +351,6 @@ fn single_scattering_matches_mitsuba() {
 #[ignore = "full comparison (minutes), see the module doc"]
 fn mitsuba_full_comparison() {
     let Some(py) = python() else {
-        eprintln!("skipping: no Python with mitsuba");
         return;
     };
     let scene = std::env::var("NEPHELE_MITSUBA_SCENE")
