@@ -95,6 +95,12 @@ impl Blob {
     pub fn is_live(&self) -> bool {
         self.b.abs() > 0.0 && self.semi_axes.min_element() > 0.0
     }
+
+    /// Equivalent radius of the blob's ellipsoid: the radius of the sphere of equal volume,
+    /// `∛|s_x s_y s_z|`.
+    pub fn equivalent_radius(&self) -> f64 {
+        self.semi_axes.element_product().abs().cbrt()
+    }
 }
 
 /// Where a model came from: the source mesh's name, bounds and counts.
