@@ -20,6 +20,7 @@ pub mod eval;
 pub mod export;
 pub mod farm;
 pub mod geometry;
+pub mod hash;
 pub mod input;
 pub mod mesh;
 pub mod pipeline;

@@ -412,11 +412,6 @@ fn owners(clusters: &[Cluster], n: usize) -> Vec<usize> {
     owner
 }
 
-/// Equivalent radius of a blob's ellipsoid (the sphere of equal volume).
-pub(crate) fn equivalent_radius(b: &Blob) -> f64 {
-    b.semi_axes.element_product().abs().cbrt()
-}
-
 /// Set a cluster's direction, step and jitter box (see the module doc for the rules).
 fn orient_cluster(
     cfg: &AggregationConfig,
@@ -451,7 +446,7 @@ fn orient_cluster(
     let mean_r = c
         .members
         .iter()
-        .map(|&i| equivalent_radius(&blobs[i]))
+        .map(|&i| blobs[i].equivalent_radius())
         .sum::<f64>()
         / n;
     let centers = Aabb::from_points(c.members.iter().map(|&i| &blobs[i].center));

@@ -7,7 +7,6 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::aggregation::equivalent_radius;
 use crate::blobby::Blob;
 use crate::geometry::Aabb;
 use crate::rng::mix64;
@@ -36,7 +35,7 @@ pub(crate) fn repel(
     }
     let radius: Vec<f64> = active
         .iter()
-        .map(|&i| equivalent_radius(&blobs[i]) * factor)
+        .map(|&i| blobs[i].equivalent_radius() * factor)
         .collect();
     let r_max = radius.iter().copied().fold(0.0, f64::max);
     if r_max <= 0.0 {

@@ -18,6 +18,8 @@ pub mod model_file;
 pub mod optimise;
 pub mod polygonize;
 
+use std::path::Path;
+
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
@@ -25,7 +27,7 @@ use crate::decompose::Primitive;
 use crate::geometry::{Aabb, Ellipsoid};
 
 pub use field::BlobField;
-pub use model_file::{ModelError, load_model, save_model};
+pub use model_file::{ModelError, save_model};
 
 /// The iso-level `t` of the paper (Eq. 1); the surface is `Σ f_i = t`.
 pub const THRESHOLD: f64 = 1.0;
@@ -94,6 +96,12 @@ impl Blob {
     /// True when the blob contributes anything (positive `B` and semi-axes).
     pub fn is_live(&self) -> bool {
         self.b.abs() > 0.0 && self.semi_axes.min_element() > 0.0
+    }
+
+    /// Equivalent radius of the blob's ellipsoid: the radius of the sphere of equal volume,
+    /// `∛|s_x s_y s_z|`.
+    pub fn equivalent_radius(&self) -> f64 {
+        self.semi_axes.element_product().abs().cbrt()
     }
 }
 
@@ -167,6 +175,25 @@ impl BlobModel {
     pub fn live_count(&self) -> usize {
         self.blobs.iter().filter(|b| b.is_live()).count()
     }
+}
+
+/// Read a model file in either form: the binary [`codec`] (detected by its magic number) or
+/// RON text ([`model_file`]). It lives above both so that the RON file need not know the codec
+/// (the codec uses the model file's version and errors).
+pub fn load_model(path: &Path) -> Result<BlobModel, ModelError> {
+    let bytes =
+        crate::input::read(path, crate::input::Limit::Model).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    if codec::is_encoded(&bytes) {
+        return codec::decode(path, &bytes);
+    }
+    let text = std::str::from_utf8(&bytes).map_err(|e| ModelError::Invalid {
+        path: path.to_path_buf(),
+        message: format!("not a RON model file nor an encoded blob file ({e})"),
+    })?;
+    model_file::from_ron(path, text)
 }
 
 #[cfg(test)]

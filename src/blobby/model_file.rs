@@ -143,23 +143,6 @@ pub fn save_model(path: &Path, model: &BlobModel) -> Result<(), ModelError> {
     })
 }
 
-/// Read a model file: RON text, or the binary codec (detected by its magic number).
-pub fn load_model(path: &Path) -> Result<BlobModel, ModelError> {
-    let bytes =
-        crate::input::read(path, crate::input::Limit::Model).map_err(|source| ModelError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-    if super::codec::is_encoded(&bytes) {
-        return super::codec::decode(path, &bytes);
-    }
-    let text = std::str::from_utf8(&bytes).map_err(|e| ModelError::Invalid {
-        path: path.to_path_buf(),
-        message: format!("not a RON model file nor an encoded blob file ({e})"),
-    })?;
-    from_ron(path, text)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,8 +15,8 @@ pub mod velocity;
 pub mod vol;
 
 pub use grid::{DensityGrid, GridError, Leaf, sample_medium};
-pub use vdb::{VdbGrid, write_vdb, write_vdb_grids};
-pub use velocity::{VELOCITY_GRID_NAME, VectorGrid, sample_velocity, velocity_vdb_grid};
+pub use vdb::{VdbGrid, velocity_vdb_grid, write_vdb, write_vdb_grids};
+pub use velocity::{VELOCITY_GRID_NAME, VectorGrid, sample_velocity};
 pub use vol::write_vol;
 
 use crate::blobby::Blob;

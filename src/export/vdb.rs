@@ -29,7 +29,7 @@
 use std::path::Path;
 
 use super::grid::{DensityGrid, LEAF_VOXELS, Leaf};
-use super::velocity::VectorGrid;
+use super::velocity::{VELOCITY_GRID_NAME, VectorGrid};
 
 /// OpenVDB file format version written (OpenVDB 10's).
 pub const FILE_VERSION: u32 = 224;
@@ -77,6 +77,23 @@ impl<'a> VdbGrid<'a> {
             values: GridValues::Float(grid),
             metadata: vec![("class".into(), MetaValue::String("fog volume".into()))],
         }
+    }
+}
+
+/// `grid` as the VDB grid `vel` with its metadata (units and kinds: see [`super::velocity`]),
+/// for a shot at `fps`; the velocity's counterpart of [`VdbGrid::fog`].
+pub fn velocity_vdb_grid(grid: &VectorGrid, fps: f64) -> VdbGrid<'_> {
+    let s = |v: &str| MetaValue::String(v.into());
+    VdbGrid {
+        name: VELOCITY_GRID_NAME,
+        values: GridValues::Vec3(grid),
+        metadata: vec![
+            ("class".into(), s("unknown")),
+            ("vector_type".into(), s("contravariant relative")),
+            ("is_local_space".into(), MetaValue::Bool(false)),
+            ("fps".into(), MetaValue::Double(fps)),
+            ("units".into(), s("world units per second")),
+        ],
     }
 }
 

@@ -11,13 +11,13 @@
 //! in world space (`is_local_space` false, `vector_type` = `contravariant relative`, OpenVDB's
 //! kind for velocities); `fps` (double) is the shot's frame rate, so a renderer that wants the
 //! displacement per frame divides by it (Gaffer's `velocity_fps`, Blender's velocity scale
-//! `1/fps`).
+//! `1/fps`). The VDB writer attaches them ([`crate::export::velocity_vdb_grid`]), beside the
+//! density's `fog volume` class.
 
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::grid::{DensityGrid, LEAF_VOXELS, Leaf};
-use super::vdb::{GridValues, MetaValue, VdbGrid};
 use crate::animate::VelocityField;
 
 /// The velocity grid's name in VDB files (and the USD field's `fieldName`).
@@ -66,19 +66,6 @@ impl VectorGrid {
             })
             .sum()
     }
-
-    /// Largest vector length over the active voxels (0 when empty).
-    pub fn max_length(&self) -> f32 {
-        self.leaves
-            .iter()
-            .flat_map(|l| {
-                (0..LEAF_VOXELS)
-                    .filter(|&i| l.is_active(i))
-                    .map(|i| l.values[i])
-            })
-            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-            .fold(0.0, f32::max)
-    }
 }
 
 /// The velocity of `field` at the centre of every active voxel of `density`, on its lattice.
@@ -111,22 +98,6 @@ pub fn sample_velocity(density: &DensityGrid, field: &VelocityField) -> VectorGr
         voxel: density.voxel,
         translation: density.translation,
         leaves,
-    }
-}
-
-/// `grid` as the VDB grid `vel` with its metadata (see the module doc), for a shot at `fps`.
-pub fn velocity_vdb_grid(grid: &VectorGrid, fps: f64) -> VdbGrid<'_> {
-    let s = |v: &str| MetaValue::String(v.into());
-    VdbGrid {
-        name: VELOCITY_GRID_NAME,
-        values: GridValues::Vec3(grid),
-        metadata: vec![
-            ("class".into(), s("unknown")),
-            ("vector_type".into(), s("contravariant relative")),
-            ("is_local_space".into(), MetaValue::Bool(false)),
-            ("fps".into(), MetaValue::Double(fps)),
-            ("units".into(), s("world units per second")),
-        ],
     }
 }
 

@@ -113,11 +113,6 @@ impl WindingNumber {
         omega / (4.0 * std::f64::consts::PI)
     }
 
-    /// `w` at every point, in parallel (each value is computed alone: thread-count independent).
-    pub fn at_points(&self, points: &[DVec3]) -> Vec<f64> {
-        points.par_iter().map(|&q| self.at(q)).collect()
-    }
-
     /// True when `q` is inside the solid the mesh describes (`w > ½`).
     pub fn inside(&self, q: DVec3) -> bool {
         self.at(q) > 0.5

@@ -8,6 +8,7 @@
 use crate::shared_models;
 
 use nephele::blobby::fit::FaithfulConfig;
+use nephele::hash::fnv1a;
 use nephele::pipeline::{FitConfig, Optimisation, fit};
 
 fn small(optimisation: Optimisation) -> FitConfig {
@@ -130,13 +131,6 @@ fn closed_meshes_fit_exactly_as_before_the_winding_number() {
     let model = fit(&cfg, &knot).unwrap().model;
     let bytes = nephele::blobby::model_file::to_ron(&model);
     assert_eq!(fnv1a(bytes.as_bytes()), 0x78f8_e7bc_a500_5ea7);
-}
-
-/// 64-bit FNV-1a of `bytes`.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
 }
 
 /// A unit sphere (icosphere, 5,120 faces) with the cap `z > 0.6` cut away: a hole 1.6 wide.

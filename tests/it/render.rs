@@ -224,7 +224,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
 
 /// FNV-1a over the f32 bits of every channel.
 fn frame_hash(f: &nephele::render::Frame) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut h = nephele::hash::Fnv1a::new();
     let bits = f
         .rgb
         .iter()
@@ -233,11 +233,9 @@ fn frame_hash(f: &nephele::render::Frame) -> u64 {
         .chain(&f.depth)
         .map(|v| v.to_bits());
     for b in bits {
-        for byte in b.to_le_bytes() {
-            h = (h ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
-        }
+        h.write(&b.to_le_bytes());
     }
-    h
+    h.finish()
 }
 
 #[test]

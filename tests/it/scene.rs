@@ -13,6 +13,7 @@ use nephele::blobby::model_file::MODEL_VERSION;
 use nephele::blobby::{Blob, BlobModel, SourceInfo, save_model};
 use nephele::decompose::Primitive;
 use nephele::geometry::Aabb;
+use nephele::hash::Fnv1a;
 use nephele::scene::{self, CameraSpec, SceneError, Target};
 use temp_support::TempDir;
 
@@ -342,19 +343,16 @@ fn tiny_scene(test: &str, animation: &str) -> (TempDir, PathBuf) {
 
 /// FNV-1a of a frame's RGB and alpha bits.
 fn frame_hash(f: &nephele::render::Frame) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fnv1a::new();
     let words = f
         .rgb
         .iter()
         .flat_map(|p| p.iter().copied())
         .chain(f.alpha.iter().copied());
     for w in words {
-        for b in w.to_bits().to_le_bytes() {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
+        h.write(&w.to_bits().to_le_bytes());
     }
-    h
+    h.finish()
 }
 
 fn render_tiny(test: &str, animation: &str, k: u32) -> nephele::render::Frame {
@@ -395,13 +393,11 @@ fn pinned_hashes() -> impl Iterator<Item = u64> {
 
 /// FNV-1a over the pinned hashes.
 fn pinned_fingerprint() -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fnv1a::new();
     for pinned in pinned_hashes() {
-        for b in pinned.to_le_bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
+        h.write_u64(pinned);
     }
-    h
+    h.finish()
 }
 
 #[test]

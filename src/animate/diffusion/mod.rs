@@ -66,6 +66,7 @@ use super::pieces::nearest_blob;
 use super::stats::{Lattice, visible_volume};
 use super::{AnimateError, Timeline, blob_bounds, check_fraction, check_seconds, lerp, smoothstep};
 use crate::blobby::Blob;
+use crate::hash::Fnv1a;
 
 mod blend;
 mod early;
@@ -239,15 +240,10 @@ impl DiffusionPlan {
     fn hash_blend_inputs(&self) -> u64 {
         // FNV-1a over the bits (not `Hash`: the key is stored in a file name, so it must be
         // the same in every build).
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
-        let mut put = |v: u64| {
-            for byte in v.to_le_bytes() {
-                h = (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-            }
-        };
-        put(1); // the key's own version
-        put(GRID_STEPS as u64);
-        put(self.threshold.to_bits());
+        let mut h = Fnv1a::new();
+        h.write_u64(1); // the key's own version
+        h.write_u64(GRID_STEPS as u64);
+        h.write_u64(self.threshold.to_bits());
         let t = self.blend_start + self.blend_seconds;
         for i in 0..=GRID_STEPS {
             for j in 0..=GRID_STEPS {
@@ -258,12 +254,12 @@ impl DiffusionPlan {
                         .into_iter()
                         .chain([b.semi_axes.x, b.semi_axes.y, b.semi_axes.z, b.a, b.b])
                     {
-                        put(v.to_bits());
+                        h.write_u64(v.to_bits());
                     }
                 }
             }
         }
-        h
+        h.finish()
     }
 
     /// The blend's path as knots `[u, detail, fitted]`, once made (by a frame inside the blend,

@@ -42,7 +42,7 @@ use crate::mesh::sample::SurfaceSamples;
 use crate::mesh::winding::WindingNumber;
 use params::{Eval, Params};
 use points::{Kind, Points, constraint_points};
-use sparsity::{colour, incidence};
+use sparsity::{colour, incidence, points_within};
 
 /// What happened during a full optimisation.
 #[derive(Clone, Debug, Default)]
@@ -334,7 +334,7 @@ impl<'a> FullProblem<'a> {
     ) {
         let (cfg, threshold, diag) = (self.cfg, self.threshold, self.diag);
         // Only the points some active blob reaches take part.
-        let pts = active.map(|mask| self.pts.within(&supports_of(blobs, mask)));
+        let pts = active.map(|mask| points_within(&self.pts, &supports_of(blobs, mask)));
         let pts = pts.as_ref().unwrap_or(&self.pts);
         let anchors: Vec<Params> = anchors.iter().map(Params::from_blob).collect();
         for _ in 0..sweeps {

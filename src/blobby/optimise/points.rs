@@ -5,8 +5,6 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::FullConfig;
-use super::sparsity::widened;
-use crate::blobby::{Blob, BlobField};
 use crate::mesh::sample::SurfaceSamples;
 use crate::mesh::winding::WindingNumber;
 
@@ -23,23 +21,6 @@ pub(super) struct Points {
     pub(super) x: Vec<DVec3>,
     pub(super) n: Vec<DVec3>,
     pub(super) kind: Vec<Kind>,
-}
-
-impl Points {
-    /// The points inside the (widened) support of some live blob of `blobs`.
-    pub(super) fn within(&self, blobs: &[Blob]) -> Points {
-        let widened: Vec<Blob> = blobs.iter().map(|b| widened(b, true)).collect();
-        let index = BlobField::new(&widened, 1.0);
-        let keep: Vec<usize> = (0..self.x.len())
-            .into_par_iter()
-            .filter(|&k| index.sum(self.x[k]) > 0.0)
-            .collect();
-        Points {
-            x: keep.iter().map(|&k| self.x[k]).collect(),
-            n: keep.iter().map(|&k| self.n[k]).collect(),
-            kind: keep.iter().map(|&k| self.kind[k]).collect(),
-        }
-    }
 }
 
 /// Surface samples bucketed in a uniform grid, for "is any sample within r of q?" queries.

@@ -1,5 +1,5 @@
-//! Which points each blob touches (CSR incidence) and which blobs can be updated together
-//! (greedy colouring of the overlap graph).
+//! Which points each blob touches (CSR incidence, and the points some blob touches at all) and
+//! which blobs can be updated together (greedy colouring of the overlap graph).
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -14,6 +14,21 @@ pub(super) fn widened(b: &Blob, counts: bool) -> Blob {
         semi_axes: b.semi_axes * 1.15,
         b: if counts && b.is_live() { 1.0 } else { 0.0 },
         ..*b
+    }
+}
+
+/// The points of `pts` inside the (widened) support of some live blob of `blobs`.
+pub(super) fn points_within(pts: &Points, blobs: &[Blob]) -> Points {
+    let widened: Vec<Blob> = blobs.iter().map(|b| widened(b, true)).collect();
+    let index = BlobField::new(&widened, 1.0);
+    let keep: Vec<usize> = (0..pts.x.len())
+        .into_par_iter()
+        .filter(|&k| index.sum(pts.x[k]) > 0.0)
+        .collect();
+    Points {
+        x: keep.iter().map(|&k| pts.x[k]).collect(),
+        n: keep.iter().map(|&k| pts.n[k]).collect(),
+        kind: keep.iter().map(|&k| pts.kind[k]).collect(),
     }
 }
 
