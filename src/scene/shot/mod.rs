@@ -4,14 +4,21 @@
 //! `farm` all go through it.
 //!
 //! Frames are numbered from `shot.start_frame` (default 1): frame number `f` is the shot's
-//! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`super::frames`]).
+//! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`self::frames`]).
+
+pub mod chunk;
+pub mod frames;
+pub mod run;
+pub mod stats;
+pub mod target;
+pub mod usd;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use super::camera::camera_at;
-use super::frames::FrameSelection;
-use super::target::{TargetOrigin, load_spec, load_target};
+use self::frames::FrameSelection;
+use self::target::{TargetOrigin, load_spec, load_target};
+use super::file::camera::camera_at;
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
@@ -36,7 +43,7 @@ pub struct RenderOptions {
     pub clean: bool,
     /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
     pub dump_blobs: bool,
-    /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
+    /// Also write per-frame statistics to `<name>_stats.csv` (see [`self::stats`]); frames
     /// already done are rendered again in memory for their coverage.
     pub stats: bool,
     /// Write the render passes into the EXR, as `output.passes: true` does.
@@ -251,7 +258,7 @@ impl Shot {
         let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
         let prepared = plan(&self.scene, model, origin)?;
         // The diffusion's blend path, if another process made it for this very plan.
-        super::blend_cache::load(&self.cache_dir, &prepared.plan);
+        super::resume::blend_cache::load(&self.cache_dir, &prepared.plan);
         Ok(self.prepared.get_or_init(|| prepared))
     }
 
@@ -259,7 +266,7 @@ impl Shot {
     /// one has made it (nothing for other animations, or when it is cached already).
     pub fn cache_blend_path(&self) -> Result<(), SceneError> {
         match self.prepared.get() {
-            Some(p) => super::blend_cache::store(&self.cache_dir, &p.plan),
+            Some(p) => super::resume::blend_cache::store(&self.cache_dir, &p.plan),
             None => Ok(()),
         }
     }
@@ -371,11 +378,7 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     scene.file.transform.apply(&mut model.blobs);
     // Before planning: a target the renderer cannot draw is refused, not rendered empty.
     let bounds = blob_bounds(&model.blobs);
-    super::target::check_target_box(
-        scene,
-        &bounds,
-        &super::target::spec_name(&scene.file.target),
-    )?;
+    self::target::check_target_box(scene, &bounds, &self::target::spec_name(&scene.file.target))?;
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,

@@ -1,18 +1,18 @@
 //! Rendering a shot to frame files, resumable: every file is written atomically and the
 //! frame's manifest last, so a frame whose files and manifest exist is finished; it is skipped
-//! when its hash matches ([`super::provenance`]) unless `force` is set, and rendered again,
+//! when its hash matches ([`crate::scene::resume::provenance`]) unless `force` is set, and rendered again,
 //! with the reason counted, when it does not.
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use super::lock::FrameLock;
-use super::provenance::{self, FrameStatus};
-use super::shot::Shot;
 use super::stats::StatsBasis;
 use super::target::TargetOrigin;
-use super::{RenderOptions, Scene, SceneError, frame_files};
 use crate::progress::Timings;
+use crate::scene::resume::lock::FrameLock;
+use crate::scene::resume::provenance::{self, FrameStatus};
+use crate::scene::shot::Shot;
+use crate::scene::{RenderOptions, Scene, SceneError, frame_files};
 
 /// What happened to one frame.
 #[derive(Clone, Debug)]
@@ -162,7 +162,7 @@ impl Shot {
                 // Held from the check until the manifest is written (by the writer thread).
                 let lock = FrameLock::acquire(
                     self.dir(),
-                    &frame_files::frame_stem(self, frame),
+                    &crate::scene::resume::frame_names::frame_stem(self, frame),
                     &self.scene().path,
                 )?;
                 let check = provenance::check_frame(self, frame, &inputs, opts.force, opts.clean);
@@ -277,9 +277,12 @@ impl Shot {
 impl Shot {
     /// Remove the temporary files that killed runs left in the frames folder and the cache
     /// folder (frames, statistics, the fitted target's and the blend path's caches; those no
-    /// running process is writing, [`super::lock::remove_stale_temps`]); returns how many.
+    /// running process is writing, [`crate::scene::resume::lock::remove_stale_temps`]); returns how many.
     pub fn remove_stale_temps(&self) -> Result<usize, SceneError> {
-        super::lock::remove_stale_temps(&[self.dir(), self.cache_dir()], &self.scene().name)
+        crate::scene::resume::lock::remove_stale_temps(
+            &[self.dir(), self.cache_dir()],
+            &self.scene().name,
+        )
     }
 
     /// What [`Shot::run`] would do with each requested frame: up to date, new, or out of date
