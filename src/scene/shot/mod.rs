@@ -8,6 +8,7 @@
 
 pub mod chunk;
 pub mod frames;
+pub mod request;
 pub mod run;
 pub mod stats;
 pub mod target;
@@ -312,6 +313,18 @@ impl Shot {
         })
     }
 
+    /// Check, without leaving anything behind, that the frames can be written into the shot's
+    /// folder (which need not exist yet).
+    pub fn check_writable(&self) -> Result<(), SceneError> {
+        crate::atomic::check_writable(self.dir()).map_err(|e| SceneError::Io {
+            path: self.dir().to_path_buf(),
+            source: std::io::Error::new(
+                e.kind(),
+                format!("the output folder is not writable: {e}"),
+            ),
+        })
+    }
+
     /// The blobs of 0-based frame `k`.
     pub fn blobs(&self, k: u32) -> Result<Vec<Blob>, SceneError> {
         Ok(self.prepared()?.plan.frame(k as usize))
@@ -320,7 +333,13 @@ impl Shot {
     /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
     pub fn render_frame(&self, k: impl Into<render::FrameIndex>) -> Result<Frame, SceneError> {
         let render::FrameIndex(k) = k.into();
-        self.image(k, &self.settings(k)?, &self.blobs(k)?)
+        let request = self.frame_request(k)?;
+        Ok(render::FrameRenderer::render_once(
+            &request.settings,
+            &request.blobs,
+            &request.options(self.film()?),
+        )
+        .0)
     }
 
     /// The open shutter of 0-based frame `k` with `time_samples` strata (`shot.shutter` of a
@@ -352,23 +371,6 @@ impl Shot {
             .collect();
         let shutter = render::Shutter { samples, stratum };
         Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
-    }
-
-    /// Render 0-based frame `k` from its `settings` and `blobs` ([`render::FrameRenderer`]):
-    /// through the open shutter when the cloud moves, else the frame as it stands (so a closed
-    /// shutter, or a cloud holding still, gives the same bits), into the shot's film.
-    pub fn image(
-        &self,
-        k: u32,
-        settings: &RenderSettings,
-        blobs: &[Blob],
-    ) -> Result<Frame, SceneError> {
-        let shutter = self.shutter(k, settings.quality.time_samples)?;
-        let options = render::FrameOptions {
-            shutter: shutter.as_ref(),
-            film: self.film()?,
-        };
-        Ok(render::FrameRenderer::render_once(settings, blobs, &options).0)
     }
 }
 

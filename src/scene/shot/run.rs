@@ -6,9 +6,11 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+use super::request::FrameRequest;
 use super::stats::StatsBasis;
 use super::target::TargetOrigin;
 use crate::progress::Timings;
+use crate::scene::resume::frame_names;
 use crate::scene::resume::lock::FrameLock;
 use crate::scene::resume::provenance::{self, FrameStatus};
 use crate::scene::shot::Shot;
@@ -104,48 +106,15 @@ impl Shot {
     /// this returns; the frames after it are left for the next run. The report counts the
     /// frames up to the stop. (For front ends that take an interrupt between frames, like the
     /// Python package's `render_all`.)
+    ///
+    /// The steps, frame by frame: [`ShotRun::plan`] once, then for each frame its
+    /// [`FrameRequest`], [`ShotRun::check`], [`ShotRun::render`], [`ShotRun::write`] (beside
+    /// the next frame's render) and [`ShotRun::account`].
     pub fn run_until(
         &self,
         on_frame: &mut dyn FnMut(&FrameReport) -> ControlFlow<()>,
     ) -> Result<ShotReport, SceneError> {
-        let opts = self.options();
-        let mut timings = Timings::default();
-        let mut report = ShotReport {
-            output_dir: self.dir().to_path_buf(),
-            rendered: 0,
-            skipped: 0,
-            out_of_date: Vec::new(),
-            target: None,
-            timings: Timings::default(),
-            stats: None,
-            others: OtherFiles::default(),
-        };
-        let last = self.number(self.total() - 1);
-        // The hashes need every frame's inputs, so the target is loaded (from its cache when
-        // there is one) even when every frame turns out to be up to date.
-        let prep = timings.stage("target and plan", || self.prepared())?;
-        report.target = Some(prep.origin.clone());
-        let voxel = frame_files::grid_voxel(self)?;
-        let basis = if opts.stats {
-            Some(StatsBasis::new(self)?)
-        } else {
-            None
-        };
-        let mut stats = Vec::new();
-        let (mut render_s, mut write_s, mut stats_s) = (0.0, 0.0, 0.0);
-        // The memory a frame needs, checked on the machine that renders it (a farm's head node
-        // that only loads the scene may have far less).
-        let first = self.settings(0)?;
-        crate::render::memory::check_available(first.width, first.height, &first.quality).map_err(
-            |message| SceneError::Invalid {
-                path: self.scene().path.clone(),
-                field: "shot".into(),
-                message,
-            },
-        )?;
-        // Temporary files of frames no process is writing were left by a killed render.
-        self.remove_stale_temps()?;
-        let film = self.film()?.clone();
+        let mut run = ShotRun::plan(self)?;
         // Frames in order: a hold reuses the last frame, a still cloud its light grid.
         let mut renderer = crate::render::FrameRenderer::new();
         // A frame's files are encoded and written on their own thread while the next frame
@@ -155,122 +124,256 @@ impl Shot {
             let frames = self.frames();
             for (n, &frame) in frames.iter().enumerate() {
                 let start = Instant::now();
-                let k = self.index(frame);
-                let blobs = self.blobs(k)?;
-                let settings = self.settings(k)?;
-                let inputs = provenance::frame_inputs(self, k, &settings, &blobs, &film, voxel);
-                // Held from the check until the manifest is written (by the writer thread).
-                let lock = FrameLock::acquire(
-                    self.dir(),
-                    &crate::scene::resume::frame_names::frame_stem(self, frame),
-                    &self.scene().path,
-                )?;
-                let check = provenance::check_frame(self, frame, &inputs, opts.force, opts.clean);
-                report.others.count(&check.others);
-                let finished = check.is_done();
-                if let FrameStatus::OutOfDate(reason) = &check.status {
-                    match report.out_of_date.iter_mut().find(|(r, _)| r == reason) {
-                        Some((_, n)) => *n += 1,
-                        None => report.out_of_date.push((reason.clone(), 1)),
-                    }
-                }
-                // With statistics every frame is rendered (finished ones again, in memory only).
-                let render = check.needs_render() || opts.stats;
-                if finished && !opts.stats {
-                    drop(lock);
-                    report.skipped += 1;
-                    if on_frame(&skipped(frame, last)).is_break() {
+                let request = self.frame_request(self.index(frame))?;
+                let checked = run.check(&request)?;
+                let finished = checked.check.is_done();
+                if finished && !run.stats_wanted() {
+                    drop(checked);
+                    if run.account(frame, None, start, true, on_frame).is_break() {
                         break;
                     }
                     continue;
                 }
-                let shutter = self.shutter(k, settings.quality.time_samples)?;
-                let options = crate::render::FrameOptions {
-                    shutter: shutter.as_ref(),
-                    film: &film,
-                };
-                let image = render.then(|| renderer.render(&settings, &blobs, &options));
+                let image = run.render(&mut renderer, &request, &checked.check);
                 let rendered = Instant::now();
                 finish_writing(&mut writing)?;
-                let written = Instant::now();
+                let waited = Instant::now();
                 if !finished {
-                    if n + 1 < frames.len() {
-                        let (image, settings, blobs) =
-                            (image.cloned(), settings.clone(), blobs.clone());
-                        // Written beside the next frame's render: sequentially, or its formats
-                        // would only take the render's cores.
-                        writing = Some(scope.spawn(move || {
-                            let out = frame_files::FrameOutput {
-                                image: image.as_ref(),
-                                settings: &settings,
-                                blobs: &blobs,
-                                voxel,
-                                inputs: &inputs,
-                                check: &check,
-                            };
-                            let written = frame_files::write_frame(self, frame, &out, false);
-                            drop(lock);
-                            written
-                        }));
-                    } else {
-                        // The last frame: nothing to overlap with, so no copy of it, and its
-                        // formats in parallel.
-                        let out = frame_files::FrameOutput {
-                            image,
-                            settings: &settings,
-                            blobs: &blobs,
-                            voxel,
-                            inputs: &inputs,
-                            check: &check,
-                        };
-                        frame_files::write_frame(self, frame, &out, true)?;
-                        drop(lock);
-                    }
-                } else {
-                    drop(lock);
+                    let last = n + 1 == frames.len();
+                    writing = run.write(scope, request.clone(), image, checked, last)?;
                 }
-                let written_last = Instant::now();
-                if let (Some(basis), Some(image)) = (&basis, image) {
-                    stats.push(basis.frame(frame, &blobs, Some(image)));
-                }
-                render_s += (rendered - start).as_secs_f64();
-                // Writing costs the shot only what it did not overlap: the wait for the previous
-                // frame's writer, and the last frame's own write.
-                write_s +=
-                    (written - rendered).as_secs_f64() + (written_last - written).as_secs_f64();
-                stats_s += written_last.elapsed().as_secs_f64();
-                if finished {
-                    report.skipped += 1;
-                } else {
-                    report.rendered += 1;
-                }
-                let stop = on_frame(&FrameReport {
-                    frame,
-                    of: last,
-                    skipped: finished,
-                    seconds: start.elapsed().as_secs_f64(),
-                });
+                run.time(start, rendered, waited);
+                let stop = run.account(frame, Some((&request, image)), start, finished, on_frame);
                 if stop.is_break() {
                     break;
                 }
             }
             let last_write = Instant::now();
             finish_writing(&mut writing)?;
-            write_s += last_write.elapsed().as_secs_f64();
+            run.write_s += last_write.elapsed().as_secs_f64();
             Ok(())
         })?;
-        timings.stages.push(("render".into(), render_s));
-        timings.stages.push(("write".into(), write_s));
-        if basis.is_some() {
-            timings.stages.push(("stats".into(), stats_s));
-            let path = super::stats::stats_path(self);
-            super::stats::write_csv(&path, &stats)?;
-            report.stats = Some(path);
+        run.finish()
+    }
+}
+
+/// A shot's run in progress: what is known once before the frames (the target and plan, the
+/// voxel size, the film), the frame renderer carried from frame to frame, and the report.
+pub struct ShotRun<'a> {
+    shot: &'a Shot,
+    voxel: f64,
+    film: crate::render::Film,
+    basis: Option<StatsBasis>,
+    stats: Vec<super::stats::FrameStats>,
+    timings: Timings,
+    report: ShotReport,
+    last: u32,
+    render_s: f64,
+    write_s: f64,
+    stats_s: f64,
+    written_at: Option<Instant>,
+}
+
+/// A frame checked against its files on disk, its lock held until its manifest is written.
+pub struct CheckedFrame {
+    /// The frame's inputs.
+    pub inputs: provenance::FrameInputs,
+    /// What is on disk against what the scene asks for.
+    pub check: provenance::FrameCheck,
+    /// Held from the check until the frame's manifest is written.
+    pub lock: FrameLock,
+}
+
+impl<'a> ShotRun<'a> {
+    /// Before the first frame: the output folder writable, the target and its plan (the hashes
+    /// need every frame's inputs, so the target is loaded, from its cache when there is one,
+    /// even when every frame turns out to be up to date), the grids' voxel, the memory a frame
+    /// needs (checked on the machine that renders it), and the temporaries killed runs left.
+    pub fn plan(shot: &'a Shot) -> Result<ShotRun<'a>, SceneError> {
+        shot.check_writable()?;
+        let mut timings = Timings::default();
+        let prep = timings.stage("target and plan", || shot.prepared())?;
+        let report = ShotReport {
+            output_dir: shot.dir().to_path_buf(),
+            rendered: 0,
+            skipped: 0,
+            out_of_date: Vec::new(),
+            target: Some(prep.origin.clone()),
+            timings: Timings::default(),
+            stats: None,
+            others: OtherFiles::default(),
+        };
+        let voxel = frame_files::grid_voxel(shot)?;
+        let basis = if shot.options().stats {
+            Some(StatsBasis::new(shot)?)
+        } else {
+            None
+        };
+        // A farm's head node that only loads the scene may have far less memory.
+        let first = shot.settings(0)?;
+        crate::render::memory::check_available(first.width, first.height, &first.quality).map_err(
+            |message| SceneError::Invalid {
+                path: shot.scene().path.clone(),
+                field: "shot".into(),
+                message,
+            },
+        )?;
+        shot.remove_stale_temps()?;
+        Ok(ShotRun {
+            shot,
+            voxel,
+            film: shot.film()?.clone(),
+            basis,
+            stats: Vec::new(),
+            timings,
+            report,
+            last: shot.number(shot.total() - 1),
+            render_s: 0.0,
+            write_s: 0.0,
+            stats_s: 0.0,
+            written_at: None,
+        })
+    }
+
+    /// True when every frame is rendered for its statistics (finished ones again, in memory).
+    pub fn stats_wanted(&self) -> bool {
+        self.basis.is_some()
+    }
+
+    /// Lock the frame and check its files on disk against its inputs; the reason it is out of
+    /// date, and the files of other formats it has, are counted in the report.
+    pub fn check(&mut self, request: &FrameRequest) -> Result<CheckedFrame, SceneError> {
+        let shot = self.shot;
+        let opts = shot.options();
+        let inputs = provenance::frame_inputs(shot, request, &self.film, self.voxel);
+        let lock = FrameLock::acquire(
+            shot.dir(),
+            &frame_names::frame_stem(shot, request.frame),
+            &shot.scene().path,
+        )?;
+        let check = provenance::check_frame(shot, request.frame, &inputs, opts.force, opts.clean);
+        let report = &mut self.report;
+        report.others.count(&check.others);
+        if let FrameStatus::OutOfDate(reason) = &check.status {
+            match report.out_of_date.iter_mut().find(|(r, _)| r == reason) {
+                Some((_, n)) => *n += 1,
+                None => report.out_of_date.push((reason.clone(), 1)),
+            }
         }
-        // The blend path this run made (a frame inside a diffusion's blend), for the next.
-        self.cache_blend_path()?;
-        report.timings = timings;
-        Ok(report)
+        Ok(CheckedFrame {
+            inputs,
+            check,
+            lock,
+        })
+    }
+
+    /// Render the frame with `renderer` if a file to write needs its image (or its statistics
+    /// do).
+    pub fn render<'r>(
+        &self,
+        renderer: &'r mut crate::render::FrameRenderer,
+        request: &FrameRequest,
+        check: &provenance::FrameCheck,
+    ) -> Option<&'r crate::render::Frame> {
+        (check.needs_render() || self.stats_wanted())
+            .then(|| request.render_into(renderer, &self.film))
+    }
+
+    /// Write the frame's files: on a thread beside the next frame's render (sequentially, or
+    /// its formats would only take the render's cores), or, for the last frame, here with its
+    /// formats in parallel. The lock is released once the manifest is written.
+    pub fn write<'scope>(
+        &self,
+        scope: &'scope std::thread::Scope<'scope, '_>,
+        request: FrameRequest,
+        image: Option<&crate::render::Frame>,
+        checked: CheckedFrame,
+        last: bool,
+    ) -> Result<Option<Writer<'scope>>, SceneError>
+    where
+        'a: 'scope,
+    {
+        let (shot, voxel) = (self.shot, self.voxel);
+        let write = move |image: Option<&crate::render::Frame>, parallel: bool| {
+            let out = frame_files::FrameOutput {
+                image,
+                settings: &request.settings,
+                blobs: &request.blobs,
+                voxel,
+                inputs: &checked.inputs,
+                check: &checked.check,
+            };
+            let written = frame_files::write_frame(shot, request.frame, &out, parallel);
+            drop(checked.lock);
+            written
+        };
+        if last {
+            // Nothing to overlap with: no copy of the image.
+            write(image, true)?;
+            return Ok(None);
+        }
+        let image = image.cloned();
+        Ok(Some(scope.spawn(move || write(image.as_ref(), false))))
+    }
+
+    /// Count a rendered frame's times: its render (from `start` to `rendered`), and what
+    /// writing cost the shot: the wait for the previous frame's writer (to `waited`) and, for
+    /// the last frame, its own write (to now).
+    fn time(&mut self, start: Instant, rendered: Instant, waited: Instant) {
+        let now = Instant::now();
+        self.render_s += (rendered - start).as_secs_f64();
+        self.write_s += (waited - rendered).as_secs_f64() + (now - waited).as_secs_f64();
+        self.written_at = Some(now);
+    }
+
+    /// Count the frame in the report (and its statistics) and tell `on_frame`.
+    fn account(
+        &mut self,
+        frame: u32,
+        rendered: Option<(&FrameRequest, Option<&crate::render::Frame>)>,
+        start: Instant,
+        finished: bool,
+        on_frame: &mut dyn FnMut(&FrameReport) -> ControlFlow<()>,
+    ) -> ControlFlow<()> {
+        if let Some((request, image)) = rendered {
+            let written = self.written_at.take().unwrap_or_else(Instant::now);
+            if let (Some(basis), Some(image)) = (&self.basis, image) {
+                self.stats
+                    .push(basis.frame(frame, &request.blobs, Some(image)));
+            }
+            self.stats_s += written.elapsed().as_secs_f64();
+        }
+        if finished {
+            self.report.skipped += 1;
+        } else {
+            self.report.rendered += 1;
+        }
+        on_frame(&FrameReport {
+            frame,
+            of: self.last,
+            skipped: finished,
+            seconds: if rendered.is_some() {
+                start.elapsed().as_secs_f64()
+            } else {
+                0.0
+            },
+        })
+    }
+
+    /// After the last frame: the stage times, the statistics file, and the blend path this run
+    /// made (a frame inside a diffusion's blend), cached for the next.
+    fn finish(mut self) -> Result<ShotReport, SceneError> {
+        self.timings.stages.push(("render".into(), self.render_s));
+        self.timings.stages.push(("write".into(), self.write_s));
+        if self.basis.is_some() {
+            self.timings.stages.push(("stats".into(), self.stats_s));
+            let path = super::stats::stats_path(self.shot);
+            super::stats::write_csv(&path, &self.stats)?;
+            self.report.stats = Some(path);
+        }
+        self.shot.cache_blend_path()?;
+        self.report.timings = self.timings;
+        Ok(self.report)
     }
 }
 
@@ -293,9 +396,8 @@ impl Shot {
         self.frames()
             .iter()
             .map(|&frame| {
-                let k = self.index(frame);
-                let (settings, blobs) = (self.settings(k)?, self.blobs(k)?);
-                let inputs = provenance::frame_inputs(self, k, &settings, &blobs, &film, voxel);
+                let request = self.frame_request(self.index(frame))?;
+                let inputs = provenance::frame_inputs(self, &request, &film, voxel);
                 let check = provenance::check_frame(self, frame, &inputs, false, false);
                 Ok((frame, check.status))
             })
@@ -311,13 +413,4 @@ fn finish_writing(writing: &mut Option<Writer<'_>>) -> Result<(), SceneError> {
     writing
         .take()
         .map_or(Ok(()), |w| w.join().expect("the frame writer panicked"))
-}
-
-fn skipped(frame: u32, of: u32) -> FrameReport {
-    FrameReport {
-        frame,
-        of,
-        skipped: true,
-        seconds: 0.0,
-    }
 }

@@ -3,10 +3,10 @@
 
 use std::collections::BTreeMap;
 
-use crate::blobby::Blob;
 use crate::render::{Film, RENDER_VERSION, RenderSettings};
 use crate::scene::resume::canonical::{Canonical, Encoder};
 use crate::scene::resume::frame_names::{FileKind, manifest_path};
+use crate::scene::shot::request::FrameRequest;
 use crate::scene::{Format, Shot};
 
 use super::manifest::read_manifest;
@@ -133,16 +133,13 @@ impl FrameInputs {
     }
 }
 
-/// The inputs of the shot's 0-based frame `k` (frame number `frame`), rendered with `settings`
-/// from `blobs` into `film`; `voxel` is the density grids' voxel size (0 without grids).
-pub fn frame_inputs(
-    shot: &Shot,
-    k: u32,
-    settings: &RenderSettings,
-    blobs: &[Blob],
-    film: &Film,
-    voxel: f64,
-) -> FrameInputs {
+/// The inputs of frame `request` of `shot`, rendered into `film`; `voxel` is the density
+/// grids' voxel size.
+pub fn frame_inputs(shot: &Shot, request: &FrameRequest, film: &Film, voxel: f64) -> FrameInputs {
+    let FrameRequest {
+        k, settings, blobs, ..
+    } = request;
+    let k = *k;
     let scene = shot.scene();
     let file = &scene.file;
     let hash = |f: &dyn Fn(&mut Encoder)| {
@@ -199,11 +196,7 @@ pub fn frame_inputs(
     hashes.insert(Component::Blobs, blobs.canonical_hash());
     hashes.insert(Component::Film, film.canonical_hash());
     // An open shutter renders the blobs over its time samples.
-    let shutter = if file.shot.shutter > 0.0 {
-        shot.shutter(k, quality.time_samples).ok().flatten()
-    } else {
-        None
-    };
+    let shutter = request.shutter.as_ref();
     hashes.insert(
         Component::Shutter,
         hash(&|e| {
