@@ -30,5 +30,5 @@ pub mod rng;
 pub mod scene;
 pub mod test_hook;
 
-/// The renderer's version ([`scene::provenance::RENDER_VERSION`]).
-pub use scene::provenance::RENDER_VERSION;
+/// The renderer's version ([`render::RENDER_VERSION`]).
+pub use render::RENDER_VERSION;

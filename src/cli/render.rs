@@ -114,8 +114,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         shot.set_frames(frames);
     }
-    nephele::atomic::check_writable(shot.dir())
-        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
     let count = shot.frames().len() as u64;
     let bar = nephele::progress::bar(&name, count);
     let report = shot

@@ -1,5 +1,5 @@
 //! Clouds that leave nephele: the renderer's density as OpenVDB and Mitsuba `.vol` grids (the
-//! shot's USD stage, which points at them, is written by [`crate::scene::usd`]).
+//! shot's USD stage, which points at them, is written by [`crate::scene::shot::usd`]).
 //!
 //! In: a frame's blobs and [`RenderSettings`] (the same the frame is rendered with). Out: a
 //! [`DensityGrid`] sampled through the renderer's own [`crate::render::Medium`] (so the files

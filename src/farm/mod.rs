@@ -3,7 +3,7 @@
 //! A farm render is two jobs. The *prepare* job runs `nephele prepare`, which fits and caches
 //! the target once. The *render* job is an array of `N` tasks; task `I` runs
 //! `nephele render SCENE --task I/N`, which renders chunk `I` of the frames (see
-//! [`crate::scene::chunk`]). Frames are written atomically and finished frames are skipped, so a
+//! [`crate::scene::shot::chunk`]). Frames are written atomically and finished frames are skipped, so a
 //! task that is killed and requeued resumes where it stopped, and a task that starts without the
 //! cache refits the same target deterministically and renames its own copy into place.
 //!
@@ -37,7 +37,7 @@ mod value;
 
 use std::path::PathBuf;
 
-use crate::scene::frames::selection_text;
+use crate::scene::shot::frames::selection_text;
 
 pub use k8s::{
     K8sJobNames, K8sPod, k8s_indexed_job, k8s_job_names, k8s_mount, k8s_name, k8s_prepare_job,

@@ -10,21 +10,16 @@
 //! so a scene can sit beside its models; the output folder resolves against the current
 //! directory, so renders land in the repository's `renders/` when run from its root.
 
-pub(crate) mod blend_cache;
-pub mod camera;
-pub mod canonical;
-pub mod chunk;
 pub mod file;
-pub mod frame_files;
-pub mod frames;
-pub mod lock;
-pub mod provenance;
-pub mod run;
+pub mod resume;
 pub mod shot;
-pub mod stats;
-pub mod target;
-pub mod transform;
-pub mod usd;
+
+// Each module lives in the folder of its job (`file/`: the scene file's schema and checks;
+// `shot/`: a shot and its run; `resume/`: what makes a run resumable); these are their paths in
+// the scene API.
+pub use file::{camera, transform};
+pub use resume::{canonical, frame_files, frame_names, lock, provenance};
+pub use shot::{chunk, frames, run, stats, target, usd};
 
 use std::path::{Path, PathBuf};
 

@@ -6,17 +6,26 @@
 //! `Aggregation((keyframes: 8))`, `Auto((azimuth_deg: 30.0))`; `Fit(mesh: "…")` is a struct
 //! variant and takes its fields directly.
 
+pub mod camera;
+pub mod transform;
+
 use std::path::Path;
 
-use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
+use self::transform::TargetTransform;
 use super::SceneError;
-use super::camera::CameraKeyframes;
-use super::transform::TargetTransform;
 use crate::animate::Animation;
 use crate::render::output::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
+
+/// Most frames a shot may have (`shot.seconds · shot.fps`): a shot is refused at load beyond
+/// this, before any list of frames is made. A million frames is 11.5 hours at 24 fps.
+pub const MAX_FRAMES: u64 = 1_000_000;
+
+/// Most digits `output.padding` may ask for (frame numbers are `u32`, at most 10 digits).
+pub const MAX_PADDING: u32 = 10;
 
 /// A scene file as written (`Scene(...)`; the struct name may also be left out).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -101,82 +110,6 @@ fn default_samples() -> usize {
     crate::pipeline::FitConfig::DEFAULT_SAMPLES
 }
 
-/// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum CameraSpec {
-    /// Frame the target's bounding sphere from a direction.
-    Auto(AutoCamera),
-    /// An explicit pinhole camera (world units).
-    Fixed(FixedCamera),
-    /// Keyframes in seconds, smoothly interpolated (see [`super::camera`]).
-    Keyframes(CameraKeyframes),
-}
-
-impl Default for CameraSpec {
-    fn default() -> Self {
-        CameraSpec::Auto(AutoCamera::default())
-    }
-}
-
-/// Automatic framing: look at the centre of the target's bounding box from `azimuth_deg`
-/// (0 = from +Z, 90 = from +X) and `elevation_deg` (above the horizon), at `distance` times
-/// the distance at which the bounding sphere just fills the narrower field of view.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct AutoCamera {
-    /// Horizontal angle around +Y, degrees.
-    pub azimuth_deg: f32,
-    /// Angle above the horizon, degrees.
-    pub elevation_deg: f32,
-    /// Distance relative to the snug framing (> 0; 1 = bounding sphere fills the frame).
-    pub distance: f32,
-    /// Vertical field of view, degrees.
-    pub fov_deg: f32,
-    /// Degrees the camera orbits around +Y over the shot (counter-clockwise seen from above).
-    pub orbit_deg: f32,
-}
-
-impl Default for AutoCamera {
-    fn default() -> Self {
-        AutoCamera {
-            azimuth_deg: 30.0,
-            elevation_deg: 15.0,
-            distance: 1.0,
-            fov_deg: 35.0,
-            orbit_deg: 0.0,
-        }
-    }
-}
-
-/// A fixed camera in the target's units.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct FixedCamera {
-    /// Eye position.
-    pub position: Vec3,
-    /// Point looked at.
-    pub look_at: Vec3,
-    /// Up hint.
-    pub up: Vec3,
-    /// Vertical field of view, degrees.
-    pub fov_deg: f32,
-    /// Degrees the camera orbits around the vertical axis through `look_at` over the shot.
-    pub orbit_deg: f32,
-}
-
-impl Default for FixedCamera {
-    fn default() -> Self {
-        FixedCamera {
-            position: Vec3::new(0.0, 1.2, 4.0),
-            look_at: Vec3::ZERO,
-            up: Vec3::Y,
-            fov_deg: 35.0,
-            orbit_deg: 0.0,
-        }
-    }
-}
-
 /// Resolution, frame rate and length of the shot (the scene file's `shot`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -192,7 +125,7 @@ pub struct ShotSpec {
     /// Open shutter as a fraction of a frame, centred on the frame's time (`0` = no motion
     /// blur, the default; `0.5` = a 180° film shutter; at most 1).
     pub shutter: f64,
-    /// Number of the first frame (film pipelines start at 1001); see [`super::frames`].
+    /// Number of the first frame (film pipelines start at 1001); see [`super::shot::frames`].
     pub start_frame: u32,
 }
 
@@ -210,7 +143,7 @@ impl Default for ShotSpec {
 }
 
 impl ShotSpec {
-    /// Number of frames (a validated shot has at most [`super::frames::MAX_FRAMES`]).
+    /// Number of frames (a validated shot has at most [`MAX_FRAMES`]).
     pub fn frame_count(&self) -> u32 {
         ((self.seconds * self.fps).round() as u32).max(1)
     }
@@ -376,7 +309,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     }
     // Counted in f64 before any integer conversion or list of frames.
     let count = (s.shot.seconds * s.shot.fps).round();
-    let max = super::frames::MAX_FRAMES;
+    let max = MAX_FRAMES;
     if count > max as f64 {
         return Err(bad(
             "shot",
@@ -407,53 +340,16 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         ));
     }
     let padding = s.output.padding;
-    if !(1..=super::frames::MAX_PADDING).contains(&padding) {
+    if !(1..=MAX_PADDING).contains(&padding) {
         return Err(bad(
             "output.padding",
-            format!(
-                "must be 1 to {} digits, got {padding}",
-                super::frames::MAX_PADDING
-            ),
+            format!("must be 1 to {} digits, got {padding}", MAX_PADDING),
         ));
     }
     finite("exposure", &[s.exposure])?;
-    let fov = |f: f32| {
-        if f.is_finite() && f > 0.0 && f < 180.0 {
-            Ok(())
-        } else {
-            Err(bad(
-                "camera.fov_deg",
-                format!("must be in (0, 180), got {f}"),
-            ))
-        }
-    };
-    match &s.camera {
-        CameraSpec::Auto(c) => {
-            finite("camera", &[c.azimuth_deg, c.elevation_deg, c.orbit_deg])?;
-            fov(c.fov_deg)?;
-            if !(c.distance.is_finite() && c.distance > 0.0) {
-                return Err(bad(
-                    "camera.distance",
-                    format!("must be positive, got {}", c.distance),
-                ));
-            }
-        }
-        CameraSpec::Fixed(c) => {
-            finite("camera", &[c.orbit_deg])?;
-            finite("camera.position", &c.position.to_array())?;
-            finite("camera.look_at", &c.look_at.to_array())?;
-            finite("camera.up", &c.up.to_array())?;
-            fov(c.fov_deg)?;
-            if c.position.distance(c.look_at) <= 0.0 {
-                return Err(bad(
-                    "camera",
-                    "position and look_at must differ".to_string(),
-                ));
-            }
-        }
-        // Checked while parsing, with the file position.
-        CameraSpec::Keyframes(_) => {}
-    }
+    s.camera
+        .validate()
+        .map_err(|(field, message)| bad(field, message))?;
     validate_light(&bad, &s.sun, &s.sky)?;
     validate_cloud(&bad, &s.cloud)?;
     crate::render::memory::check_size(s.shot.width, s.shot.height, s.quality)

@@ -9,12 +9,7 @@
 use std::fmt::Write as _;
 use std::str::FromStr;
 
-/// Most frames a shot may have (`shot.seconds · shot.fps`): a shot is refused at load beyond
-/// this, before any list of frames is made. A million frames is 11.5 hours at 24 fps.
-pub const MAX_FRAMES: u64 = 1_000_000;
-
-/// Most digits `output.padding` may ask for (frame numbers are `u32`, at most 10 digits).
-pub const MAX_PADDING: u32 = 10;
+pub use crate::scene::file::{MAX_FRAMES, MAX_PADDING};
 
 /// One item of a selection: first and last frame (inclusive), either left open.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

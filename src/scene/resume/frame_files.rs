@@ -8,36 +8,10 @@ use rayon::prelude::*;
 use super::provenance::{
     self, FileKind, FrameCheck, FrameInputs, ListedFile, Manifest, WantedFile,
 };
-use super::shot::Shot;
-use super::{Format, SceneError};
 use crate::blobby::Blob;
 use crate::render::{self, RenderSettings};
-
-/// The files of frame number `frame`: one per format, plus the blob dump if asked.
-pub fn frame_paths(shot: &Shot, frame: u32) -> Vec<std::path::PathBuf> {
-    let stem = frame_stem(shot, frame);
-    let formats = shot.scene().file.output.formats.iter();
-    let dump = shot.options().dump_blobs.then_some(FileKind::Blobs);
-    formats
-        .map(|&f| FileKind::Format(f))
-        .chain(dump)
-        .map(|kind| shot.dir().join(provenance::file_name(&stem, kind)))
-        .collect()
-}
-
-/// `<name>_0001`: the file name of frame number `frame` without its extension, the number
-/// zero-padded to `output.padding` digits; a look test's region render is `<name>_0001.region`,
-/// so it never replaces (or is taken for) the frame itself.
-pub fn frame_stem(shot: &Shot, frame: u32) -> String {
-    let scene = shot.scene();
-    let digits = scene.file.output.padding as usize;
-    let region = if shot.region().is_some() {
-        ".region"
-    } else {
-        ""
-    };
-    format!("{}_{frame:0digits$}{region}", scene.name)
-}
+use crate::scene::shot::Shot;
+use crate::scene::{Format, SceneError};
 
 /// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
 /// 512), checked against the target's box before any frame is rendered when the scene writes
@@ -122,7 +96,7 @@ pub(crate) fn write_frame(
             Err(e) => return Err(io(&manifest)(e)),
         }
     } else {
-        let record = Manifest::new(frame, inputs, untouched.clone());
+        let record = Manifest::new(frame, inputs.listed(), untouched.clone());
         crate::atomic::write_bytes_atomically(&manifest, record.to_text().as_bytes())
             .map_err(io(&manifest))?;
     }
@@ -235,33 +209,10 @@ pub(crate) fn write_frame(
             .filter(|o| !o.remove)
             .map(|o| o.listed.clone()),
     );
-    let record = Manifest::new(frame, inputs, listed);
+    let record = Manifest::new(frame, inputs.listed(), listed);
     crate::atomic::write_bytes_atomically(&manifest, record.to_text().as_bytes())
         .map_err(io(&manifest))?;
     Ok(())
-}
-
-/// The `nephele/…` strings of frame number `frame`'s EXR with file hash `hash`: `scene` (the
-/// scene file's name), `frame`, `hash`, `colorspace`, `seed` (the scene's) and `version` (the
-/// crate's).
-pub fn header_strings(shot: &Shot, frame: u32, hash: u64) -> Vec<(String, String)> {
-    let scene = shot.scene();
-    let file = scene
-        .path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    vec![
-        ("scene".to_string(), file),
-        ("frame".to_string(), frame.to_string()),
-        ("hash".to_string(), provenance::hash_text(hash)),
-        (
-            "colorspace".to_string(),
-            scene.file.output.colorspace.name().to_string(),
-        ),
-        ("seed".to_string(), scene.file.seed.to_string()),
-        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
-    ]
 }
 
 /// The EXR attributes of frame number `frame` whose EXR has hash `hash`: the camera's
@@ -279,7 +230,7 @@ pub fn frame_metadata(
         &settings.camera,
         settings.width,
         settings.height,
-        header_strings(shot, frame, hash),
+        provenance::header_strings(shot, frame, hash),
     );
     meta.color_space = space;
     meta.frames_per_second = Some(render::output::fps_rational(scene.file.shot.fps));

@@ -17,9 +17,9 @@ use std::path::{Component, Path, PathBuf};
 
 use glam::DVec3;
 
-use super::{SceneError, Shot};
 use crate::render::output::CameraFrame;
 use crate::render::{Sky, Sun};
+use crate::scene::{SceneError, Shot};
 
 /// Vertical aperture of the stage's camera (tenths of a unit, the schema's convention).
 pub const VERTICAL_APERTURE: f64 = 24.0;
@@ -111,7 +111,7 @@ pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
 pub fn frame_vdb(shot: &Shot, frame: u32) -> PathBuf {
     shot.dir().join(format!(
         "{}.vdb",
-        super::frame_files::frame_stem(shot, frame)
+        crate::scene::resume::frame_names::frame_stem(shot, frame)
     ))
 }
 

@@ -4,14 +4,22 @@
 //! `farm` all go through it.
 //!
 //! Frames are numbered from `shot.start_frame` (default 1): frame number `f` is the shot's
-//! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`super::frames`]).
+//! 0-based frame `k = f − start_frame`, at `k / fps` seconds ([`self::frames`]).
+
+pub mod chunk;
+pub mod frames;
+pub mod request;
+pub mod run;
+pub mod stats;
+pub mod target;
+pub mod usd;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use super::camera::camera_at;
-use super::frames::FrameSelection;
-use super::target::{TargetOrigin, load_spec, load_target};
+use self::frames::FrameSelection;
+use self::target::{TargetOrigin, load_spec, load_target};
+use super::file::camera::camera_at;
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
@@ -36,7 +44,7 @@ pub struct RenderOptions {
     pub clean: bool,
     /// Also write each frame's blobs as `<name>_0001.blobs.ron`.
     pub dump_blobs: bool,
-    /// Also write per-frame statistics to `<name>_stats.csv` (see [`super::stats`]); frames
+    /// Also write per-frame statistics to `<name>_stats.csv` (see [`self::stats`]); frames
     /// already done are rendered again in memory for their coverage.
     pub stats: bool,
     /// Write the render passes into the EXR, as `output.passes: true` does.
@@ -251,7 +259,7 @@ impl Shot {
         let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
         let prepared = plan(&self.scene, model, origin)?;
         // The diffusion's blend path, if another process made it for this very plan.
-        super::blend_cache::load(&self.cache_dir, &prepared.plan);
+        super::resume::blend_cache::load(&self.cache_dir, &prepared.plan);
         Ok(self.prepared.get_or_init(|| prepared))
     }
 
@@ -259,7 +267,7 @@ impl Shot {
     /// one has made it (nothing for other animations, or when it is cached already).
     pub fn cache_blend_path(&self) -> Result<(), SceneError> {
         match self.prepared.get() {
-            Some(p) => super::blend_cache::store(&self.cache_dir, &p.plan),
+            Some(p) => super::resume::blend_cache::store(&self.cache_dir, &p.plan),
             None => Ok(()),
         }
     }
@@ -305,6 +313,18 @@ impl Shot {
         })
     }
 
+    /// Check, without leaving anything behind, that the frames can be written into the shot's
+    /// folder (which need not exist yet).
+    pub fn check_writable(&self) -> Result<(), SceneError> {
+        crate::atomic::check_writable(self.dir()).map_err(|e| SceneError::Io {
+            path: self.dir().to_path_buf(),
+            source: std::io::Error::new(
+                e.kind(),
+                format!("the output folder is not writable: {e}"),
+            ),
+        })
+    }
+
     /// The blobs of 0-based frame `k`.
     pub fn blobs(&self, k: u32) -> Result<Vec<Blob>, SceneError> {
         Ok(self.prepared()?.plan.frame(k as usize))
@@ -313,7 +333,13 @@ impl Shot {
     /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
     pub fn render_frame(&self, k: impl Into<render::FrameIndex>) -> Result<Frame, SceneError> {
         let render::FrameIndex(k) = k.into();
-        self.image(k, &self.settings(k)?, &self.blobs(k)?)
+        let request = self.frame_request(k)?;
+        Ok(render::FrameRenderer::render_once(
+            &request.settings,
+            &request.blobs,
+            &request.options(self.film()?),
+        )
+        .0)
     }
 
     /// The open shutter of 0-based frame `k` with `time_samples` strata (`shot.shutter` of a
@@ -346,23 +372,6 @@ impl Shot {
         let shutter = render::Shutter { samples, stratum };
         Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
     }
-
-    /// Render 0-based frame `k` from its `settings` and `blobs` ([`render::FrameRenderer`]):
-    /// through the open shutter when the cloud moves, else the frame as it stands (so a closed
-    /// shutter, or a cloud holding still, gives the same bits), into the shot's film.
-    pub fn image(
-        &self,
-        k: u32,
-        settings: &RenderSettings,
-        blobs: &[Blob],
-    ) -> Result<Frame, SceneError> {
-        let shutter = self.shutter(k, settings.quality.time_samples)?;
-        let options = render::FrameOptions {
-            shutter: shutter.as_ref(),
-            film: self.film()?,
-        };
-        Ok(render::FrameRenderer::render_once(settings, blobs, &options).0)
-    }
 }
 
 /// Apply the scene's target transform to `model` and plan its animation (a morph's fitted
@@ -371,11 +380,7 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     scene.file.transform.apply(&mut model.blobs);
     // Before planning: a target the renderer cannot draw is refused, not rendered empty.
     let bounds = blob_bounds(&model.blobs);
-    super::target::check_target_box(
-        scene,
-        &bounds,
-        &super::target::spec_name(&scene.file.target),
-    )?;
+    self::target::check_target_box(scene, &bounds, &self::target::spec_name(&scene.file.target))?;
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{Scene, SceneError, Target};
+use crate::scene::{Scene, SceneError, Target};
 use glam::DVec3;
 
 use crate::blobby::BlobModel;

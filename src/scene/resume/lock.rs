@@ -21,7 +21,7 @@ use std::io::{Read, Write};
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 
-use super::SceneError;
+use crate::scene::SceneError;
 
 /// The extensions a frame's temporary files have before `.<token>.tmp`.
 const FRAME_FILES: [&str; 6] = ["exr", "png", "vdb", "vol", "blobs.ron", "manifest.json"];

@@ -123,6 +123,13 @@ impl Canonical for String {
     }
 }
 
+/// A reference encodes as what it refers to.
+impl<T: Canonical + ?Sized> Canonical for &T {
+    fn encode(&self, e: &mut Encoder) {
+        (**self).encode(e);
+    }
+}
+
 impl<T: Canonical> Canonical for Option<T> {
     fn encode(&self, e: &mut Encoder) {
         match self {

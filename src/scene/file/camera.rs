@@ -11,9 +11,130 @@
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::file::CameraSpec;
 use crate::geometry::Aabb;
 use crate::render::Camera;
+
+/// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum CameraSpec {
+    /// Frame the target's bounding sphere from a direction.
+    Auto(AutoCamera),
+    /// An explicit pinhole camera (world units).
+    Fixed(FixedCamera),
+    /// Keyframes in seconds, smoothly interpolated (see the module doc).
+    Keyframes(CameraKeyframes),
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec::Auto(AutoCamera::default())
+    }
+}
+
+/// Automatic framing: look at the centre of the target's bounding box from `azimuth_deg`
+/// (0 = from +Z, 90 = from +X) and `elevation_deg` (above the horizon), at `distance` times
+/// the distance at which the bounding sphere just fills the narrower field of view.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AutoCamera {
+    /// Horizontal angle around +Y, degrees.
+    pub azimuth_deg: f32,
+    /// Angle above the horizon, degrees.
+    pub elevation_deg: f32,
+    /// Distance relative to the snug framing (> 0; 1 = bounding sphere fills the frame).
+    pub distance: f32,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f32,
+    /// Degrees the camera orbits around +Y over the shot (counter-clockwise seen from above).
+    pub orbit_deg: f32,
+}
+
+impl Default for AutoCamera {
+    fn default() -> Self {
+        AutoCamera {
+            azimuth_deg: 30.0,
+            elevation_deg: 15.0,
+            distance: 1.0,
+            fov_deg: 35.0,
+            orbit_deg: 0.0,
+        }
+    }
+}
+
+/// A fixed camera in the target's units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FixedCamera {
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Up hint.
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f32,
+    /// Degrees the camera orbits around the vertical axis through `look_at` over the shot.
+    pub orbit_deg: f32,
+}
+
+impl Default for FixedCamera {
+    fn default() -> Self {
+        FixedCamera {
+            position: Vec3::new(0.0, 1.2, 4.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 35.0,
+            orbit_deg: 0.0,
+        }
+    }
+}
+
+impl CameraSpec {
+    /// Check the camera's values: finite, a field of view in (0, 180) degrees, a positive
+    /// distance, `position ≠ look_at`. Keyframes are checked while parsing, with the file
+    /// position. The error is the dotted field and what is wrong.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let finite = |field: &'static str, v: &[f32]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err((field, format!("must be finite, got {v:?}")))
+            }
+        };
+        let fov = |f: f32| {
+            if f.is_finite() && f > 0.0 && f < 180.0 {
+                Ok(())
+            } else {
+                Err(("camera.fov_deg", format!("must be in (0, 180), got {f}")))
+            }
+        };
+        match self {
+            CameraSpec::Auto(c) => {
+                finite("camera", &[c.azimuth_deg, c.elevation_deg, c.orbit_deg])?;
+                fov(c.fov_deg)?;
+                if !(c.distance.is_finite() && c.distance > 0.0) {
+                    return Err((
+                        "camera.distance",
+                        format!("must be positive, got {}", c.distance),
+                    ));
+                }
+            }
+            CameraSpec::Fixed(c) => {
+                finite("camera", &[c.orbit_deg])?;
+                finite("camera.position", &c.position.to_array())?;
+                finite("camera.look_at", &c.look_at.to_array())?;
+                finite("camera.up", &c.up.to_array())?;
+                fov(c.fov_deg)?;
+                if c.position.distance(c.look_at) <= 0.0 {
+                    return Err(("camera", "position and look_at must differ".to_string()));
+                }
+            }
+            CameraSpec::Keyframes(_) => {}
+        }
+        Ok(())
+    }
+}
 
 /// One camera keyframe.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -162,7 +283,6 @@ fn orbit(eye: Vec3, pivot: Vec3, deg: f32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::file::AutoCamera;
     use glam::DVec3;
 
     #[test]

@@ -14,13 +14,13 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::shot::Shot;
-use super::{RenderOptions, Scene, SceneError};
 use crate::animate::stats::{
     ALPHA_LEVEL, Coverage, DEFAULT_CELL_FRACTION, Lattice, VisibleVolume, coverage, visible_volume,
 };
 use crate::blobby::Blob;
 use crate::render::Frame;
+use crate::scene::shot::Shot;
+use crate::scene::{RenderOptions, Scene, SceneError};
 
 /// The statistics of one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
