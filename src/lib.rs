@@ -16,6 +16,7 @@ pub mod animate;
 pub mod atomic;
 pub mod blobby;
 pub mod decompose;
+pub mod error_chain;
 pub mod eval;
 pub mod export;
 pub mod farm;

@@ -62,22 +62,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// The error and its causes as one line, `outer: cause: …`, each cause said once: a library
-/// error's message often already ends with its source's (`{path}: {source}`), and the source is
-/// also the next link of the chain, so a link whose text the line already holds is left out.
+/// The error and its causes as one line, `outer: cause: …`, each cause said once
+/// ([`nephele::error_chain::message`], also the Python binding's exception text).
 pub fn error_message(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if line.contains(&text) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&text);
-    }
-    line
+    nephele::error_chain::message(e.as_ref())
 }
 
 /// Load a mesh and print its warnings on stderr.
