@@ -91,8 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let files = job_files(&args, &job, &scene.name)?;
     let job_dir = std::path::absolute(shot.dir())
         .with_context(|| format!("resolving {}", shot.dir().display()))?;
-    nephele::atomic::check_writable(shot.dir())
-        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
+    nephele::atomic::check_output_dir(shot.dir())?;
     if args.engine == Engine::Slurm {
         std::fs::create_dir_all(&job.logs)
             .with_context(|| format!("creating {}", job.logs.display()))?;

@@ -29,8 +29,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..RenderOptions::default()
     };
     let shot = Shot::open(scene::load_scene(&args.scene)?, &opts)?;
-    nephele::atomic::check_writable(shot.dir())
-        .with_context(|| format!("output folder {} is not writable", shot.dir().display()))?;
+    nephele::atomic::check_output_dir(shot.dir())?;
     let origin = &shot
         .prepared()
         .with_context(|| format!("preparing {}", args.scene.display()))?
