@@ -15,6 +15,7 @@
 pub mod animate;
 pub mod atomic;
 pub mod blobby;
+pub mod cli;
 pub mod decompose;
 pub mod error_chain;
 pub mod eval;
@@ -32,3 +33,6 @@ pub mod test_hook;
 
 /// The renderer's version ([`scene::provenance::RENDER_VERSION`]).
 pub use scene::provenance::RENDER_VERSION;
+
+// The command line's code (`cli`) names the library `nephele::…`, as the binary did.
+extern crate self as nephele;

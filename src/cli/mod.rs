@@ -1,4 +1,5 @@
-//! The command-line shell: argument parsing and one thin `run` per command over the library.
+//! The command-line shell: argument parsing and one thin `run` per command over the library;
+//! [`main`] is the `nephele` program (the binary's and the Python wheel's).
 
 pub mod codec;
 pub mod eval;
@@ -44,6 +45,24 @@ pub enum Command {
     Farm(farm::Args),
     /// Write a scene's shot as a USD stage: animated camera, sun, sky and the frame VDBs.
     Usd(usd::Args),
+}
+
+/// The `nephele` command: parse `args` (the program's name first), run the command, print the
+/// error chain (each cause once) on stderr. Returns the exit code: 0, or 1 on an error (clap
+/// prints `--help`, `--version` and usage errors itself and exits the process).
+pub fn main<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = Cli::parse_from(args);
+    match run(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {}", error_message(&e));
+            1
+        }
+    }
 }
 
 /// Run the parsed command.
