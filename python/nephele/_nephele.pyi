@@ -211,3 +211,7 @@ class FrameIter(Iterator[Tuple[int, Any]]):
         """What the last frame took from the one before (``None`` before the first)."""
 
 def version() -> str: ...
+
+def main(argv: Sequence[str]) -> int:
+    """Run the ``nephele`` command (``argv`` as ``sys.argv``: the program's name first); the
+    exit code. The wheel's ``nephele`` script calls it."""

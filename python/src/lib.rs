@@ -12,10 +12,12 @@
 //!
 //! One module a concern: [`errors`] (the exceptions), [`args`] (arguments read into the
 //! library's types), [`arrays`] (numpy in and out), [`model`] (`Model`, `fit`), [`scene`]
-//! (`Scene`), [`shot`] (`Shot`, `FrameIter`), [`layers`] (a frame's EXR layers as arrays).
+//! (`Scene`), [`shot`] (`Shot`, `FrameIter`), [`layers`] (a frame's EXR layers as arrays), [`cli`] (the wheel's
+//! `nephele` command).
 
 mod args;
 mod arrays;
+mod cli;
 mod errors;
 mod layers;
 mod model;
@@ -39,5 +41,6 @@ fn _nephele(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<shot::FrameIter>()?;
     m.add_function(wrap_pyfunction!(model::fit, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(cli::main, m)?)?;
     Ok(())
 }
