@@ -55,6 +55,27 @@ pub fn check_writable(dir: &Path) -> io::Result<()> {
     std::fs::remove_file(&probe)
 }
 
+/// An output folder files cannot be written in: `output folder DIR is not writable`, its
+/// source the reason ([`check_output_dir`]).
+#[derive(Debug, thiserror::Error)]
+#[error("output folder {} is not writable", dir.display())]
+pub struct NotWritable {
+    /// The folder.
+    pub dir: PathBuf,
+    /// Why ([`check_writable`]'s error).
+    #[source]
+    pub source: io::Error,
+}
+
+/// [`check_writable`] for a shot's output folder, before any frame is rendered: what
+/// `nephele render`, `prepare` and `farm` and the Python binding's `render_all` check.
+pub fn check_output_dir(dir: &Path) -> Result<(), NotWritable> {
+    check_writable(dir).map_err(|source| NotWritable {
+        dir: dir.to_path_buf(),
+        source,
+    })
+}
+
 /// Write `target` through `body` atomically. Parent folders are created. On any error the
 /// temporary file is removed and `target` is left as it was.
 pub fn write_atomically(

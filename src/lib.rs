@@ -15,7 +15,9 @@
 pub mod animate;
 pub mod atomic;
 pub mod blobby;
+pub mod cli;
 pub mod decompose;
+pub mod error_chain;
 pub mod eval;
 pub mod export;
 pub mod farm;
@@ -32,3 +34,6 @@ pub mod test_hook;
 
 /// The renderer's version ([`render::RENDER_VERSION`]).
 pub use render::RENDER_VERSION;
+
+// The command line's code (`cli`) names the library `nephele::…`, as the binary did.
+extern crate self as nephele;

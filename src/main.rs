@@ -1,17 +1,7 @@
-//! `nephele` command-line program: parses arguments, runs the command, prints the error chain
-//! (each cause once) and sets the exit code. All the work lives in the library.
-
-mod cli;
-
-use clap::Parser;
+//! `nephele` command-line program: [`nephele::cli::main`] with the process's arguments. All the
+//! work, the command line's included, lives in the library (so the Python wheel's `nephele`
+//! command runs the same code).
 
 fn main() -> std::process::ExitCode {
-    let cli = cli::Cli::parse();
-    match cli::run(cli) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", cli::error_message(&e));
-            std::process::ExitCode::FAILURE
-        }
-    }
+    std::process::ExitCode::from(nephele::cli::main(std::env::args_os()))
 }

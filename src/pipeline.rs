@@ -60,6 +60,10 @@ impl FitConfig {
     pub const DEFAULT_CANDIDATES: usize = DecomposeConfig::DEFAULT_CANDIDATES;
     /// Default number of surface samples.
     pub const DEFAULT_SAMPLES: usize = 60_000;
+    /// Fewest blobs a fit accepts.
+    pub const MIN_BLOBS: usize = 1;
+    /// Fewest candidate seeds a fit accepts.
+    pub const MIN_CANDIDATES: usize = 1;
     /// Fewest surface samples a fit accepts.
     pub const MIN_SAMPLES: usize = 100;
 
@@ -71,11 +75,11 @@ impl FitConfig {
                 "{what} must be at least {min}, got {got}"
             )))
         };
-        if self.blobs < 1 {
-            return bad("blobs", 1, self.blobs);
+        if self.blobs < Self::MIN_BLOBS {
+            return bad("blobs", Self::MIN_BLOBS, self.blobs);
         }
-        if self.candidates < 1 {
-            return bad("candidates", 1, self.candidates);
+        if self.candidates < Self::MIN_CANDIDATES {
+            return bad("candidates", Self::MIN_CANDIDATES, self.candidates);
         }
         if self.samples < Self::MIN_SAMPLES {
             return bad("samples", Self::MIN_SAMPLES, self.samples);

@@ -88,8 +88,49 @@ def scene_from_dict(data: Mapping[str, Any], path: PathLike = "scene.ron") -> Sc
     try:
         text = json.dumps(data, allow_nan=False)
     except (TypeError, ValueError) as e:
-        raise SceneError(f"{os.fspath(path)}: the dict is not plain data: {e}") from None
+        where, what = _not_plain(data, "") or (".", f"the dict is not plain data: {e}")
+        raise _scene_error(os.fspath(path), where or ".", what) from None
     return Scene._from_json(text, os.fspath(path))
+
+
+def _scene_error(path: str, field: str, what: str) -> SceneError:
+    """A ``SceneError`` about the value at key path ``field`` of the scene ``path``, located
+    as the extension's are (``path``, ``field``; ``line`` and ``column`` None)."""
+    e = SceneError(f"{path}: {field}: {what}")
+    e.path, e.line, e.column, e.field = path, None, None, field
+    return e
+
+
+_PLAIN = "dicts, lists, strings, numbers, booleans and None"
+
+
+def _not_plain(value: Any, where: str):
+    """The key path (``shot.fps``, ``output.formats[0]``: the form of ``SceneError.field``) and
+    what is wrong of the first value of ``value`` that JSON cannot carry, or None."""
+    if isinstance(value, float):
+        if value != value:
+            return where, "got NaN; scene values must be finite numbers"
+        if value in (float("inf"), float("-inf")):
+            return where, f"got {value}; scene values must be finite numbers"
+        return None
+    if value is None or isinstance(value, (str, int)):
+        return None
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if not isinstance(key, (str, int, float, bool)) and key is not None:
+                return where or ".", f"the key {key!r} is not a string"
+            found = _not_plain(item, f"{where}.{key}" if where else str(key))
+            if found:
+                return found
+        return None
+    if isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            found = _not_plain(item, f"{where}[{i}]")
+            if found:
+                return found
+        return None
+    return where or ".", (f"got {value!r} ({type(value).__name__}), which is not plain data: "
+                          f"a scene dict holds only {_PLAIN}")
 
 
 def scene_to_dict(scene: Scene) -> Dict[str, Any]:

@@ -33,7 +33,11 @@ class SceneError(NepheleError):
 
 class MeshError(NepheleError): ...
 class FitError(NepheleError): ...
-class ModelError(NepheleError): ...
+class ModelError(NepheleError):
+    """A model file or blob array that is not a usable model. From ``Model.from_blobs``, a bad
+    blob also sets ``row`` (0-based) and ``columns`` (names of ``Model.COLUMNS``)."""
+    row: int
+    columns: List[str]
 
 _Bounds = Tuple[Tuple[float, float, float], Tuple[float, float, float]]
 
@@ -68,7 +72,8 @@ class Model:
         bounds: Optional[_Bounds] = None,
     ) -> "Model":
         """The model of an (N, 12) array with ``COLUMNS`` (the inverse of ``blobs``, exact);
-        checked as a model file is (``ModelError``); a wrong shape is a ``ValueError``."""
+        checked as a model file is (``ModelError`` naming the row and column); an array of
+        anything but real numbers is a ``TypeError``, a wrong shape a ``ValueError``."""
 
 def fit(
     mesh: _Path,
@@ -206,3 +211,7 @@ class FrameIter(Iterator[Tuple[int, Any]]):
         """What the last frame took from the one before (``None`` before the first)."""
 
 def version() -> str: ...
+
+def main(argv: Sequence[str]) -> int:
+    """Run the ``nephele`` command (``argv`` as ``sys.argv``: the program's name first); the
+    exit code. The wheel's ``nephele`` script calls it."""

@@ -56,15 +56,16 @@ def test_from_blobs_checks_like_a_model_file(duck_model):
         nephele.Model.from_blobs(np.zeros((0, 12)))
     bad = good.copy()
     bad[2, 3:7] = [0.0, 0.0, 0.0, 2.0]
-    with pytest.raises(nephele.ModelError, match="blob 3: rotation is not a unit quaternion"):
+    with pytest.raises(nephele.ModelError,
+                       match="row 2, qx qy qz qw is not a unit quaternion"):
         nephele.Model.from_blobs(bad)
     bad = good.copy()
     bad[4, 10] = 0.0
-    with pytest.raises(nephele.ModelError, match=r"blob 5 is invalid .*A ≤ 0"):
+    with pytest.raises(nephele.ModelError, match=r"row 4, a is 0 \(it must be > 0\)"):
         nephele.Model.from_blobs(bad)
     bad = good.copy()
     bad[1, 0] = np.nan
-    with pytest.raises(nephele.ModelError, match="blob 2 is invalid"):
+    with pytest.raises(nephele.ModelError, match="row 1, cx is NaN"):
         nephele.Model.from_blobs(bad)
     with pytest.raises(nephele.ModelError, match="threshold must be positive"):
         nephele.Model.from_blobs(good, threshold=0.0)

@@ -17,6 +17,7 @@ pub mod fit;
 pub mod model_file;
 pub mod optimise;
 pub mod polygonize;
+pub mod rows;
 
 use std::path::Path;
 
@@ -28,6 +29,7 @@ use crate::geometry::{Aabb, Ellipsoid};
 
 pub use field::BlobField;
 pub use model_file::{ModelError, save_model};
+pub use rows::{BLOB_COLUMNS, BlobFault, check_blobs};
 
 /// The iso-level `t` of the paper (Eq. 1); the surface is `Σ f_i = t`.
 pub const THRESHOLD: f64 = 1.0;

@@ -111,26 +111,7 @@ fn validate(path: &Path, model: &BlobModel) -> Result<(), ModelError> {
             model.threshold
         )));
     }
-    for (i, b) in model.blobs.iter().enumerate() {
-        let finite = b.center.is_finite()
-            && b.rotation.is_finite()
-            && b.semi_axes.is_finite()
-            && b.a.is_finite()
-            && b.b.is_finite();
-        if !finite || b.semi_axes.min_element() < 0.0 || b.a <= 0.0 {
-            return Err(invalid(format!(
-                "blob {} is invalid (non-finite value, negative semi-axis or A ≤ 0): {b:?}",
-                i + 1
-            )));
-        }
-        if (b.rotation.length() - 1.0).abs() > 1e-3 {
-            return Err(invalid(format!(
-                "blob {}: rotation is not a unit quaternion",
-                i + 1
-            )));
-        }
-    }
-    Ok(())
+    super::check_blobs(&model.blobs).map_err(|fault| invalid(fault.to_string()))
 }
 
 /// Write a model file atomically.

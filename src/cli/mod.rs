@@ -1,4 +1,5 @@
-//! The command-line shell: argument parsing and one thin `run` per command over the library.
+//! The command-line shell: argument parsing and one thin `run` per command over the library;
+//! [`main`] is the `nephele` program (the binary's and the Python wheel's).
 
 pub mod codec;
 pub mod eval;
@@ -46,6 +47,24 @@ pub enum Command {
     Usd(usd::Args),
 }
 
+/// The `nephele` command: parse `args` (the program's name first), run the command, print the
+/// error chain (each cause once) on stderr. Returns the exit code: 0, or 1 on an error (clap
+/// prints `--help`, `--version` and usage errors itself and exits the process).
+pub fn main<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = Cli::parse_from(args);
+    match run(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {}", error_message(&e));
+            1
+        }
+    }
+}
+
 /// Run the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
@@ -62,22 +81,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// The error and its causes as one line, `outer: cause: …`, each cause said once: a library
-/// error's message often already ends with its source's (`{path}: {source}`), and the source is
-/// also the next link of the chain, so a link whose text the line already holds is left out.
+/// The error and its causes as one line, `outer: cause: …`, each cause said once
+/// ([`nephele::error_chain::message`], also the Python binding's exception text).
 pub fn error_message(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if line.contains(&text) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&text);
-    }
-    line
+    nephele::error_chain::message(e.as_ref())
 }
 
 /// Load a mesh and print its warnings on stderr.

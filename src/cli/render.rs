@@ -56,7 +56,7 @@ pub struct Args {
     pub task: Option<TaskArg>,
     /// Formats to write per frame, overriding the scene's `output.formats`: a comma-separated
     /// list of exr, png, vdb (OpenVDB density grid) and vol (Mitsuba density grid).
-    #[arg(long, value_delimiter = ',', value_parser = parse_format)]
+    #[arg(long, value_delimiter = ',', value_parser = nephele::render::output::parse_format)]
     pub formats: Vec<scene::Format>,
 }
 
@@ -78,11 +78,6 @@ fn parse_task(s: &str) -> Result<TaskArg, String> {
         i => Some(i.parse::<u32>().map_err(|_| usage())?),
     };
     Ok(TaskArg { index, count })
-}
-
-fn parse_format(s: &str) -> Result<scene::Format, String> {
-    scene::Format::from_name(s)
-        .ok_or_else(|| format!("'{s}' is not a format (use exr, png, vdb or vol)"))
 }
 
 /// Run `nephele render`.

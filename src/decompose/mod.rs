@@ -75,6 +75,27 @@ pub enum Primitive {
     Sphere,
 }
 
+impl Primitive {
+    /// Every primitive, in the order of their names.
+    pub const ALL: [Primitive; 2] = [Primitive::Ellipsoid, Primitive::Sphere];
+
+    /// The primitive's name: `ellipsoid` or `sphere` (the CLI's `--primitive` values).
+    pub fn name(self) -> &'static str {
+        match self {
+            Primitive::Ellipsoid => "ellipsoid",
+            Primitive::Sphere => "sphere",
+        }
+    }
+
+    /// The primitive named `name` ([`Primitive::name`]), or the message naming them.
+    pub fn from_name(name: &str) -> Result<Primitive, String> {
+        Primitive::ALL
+            .into_iter()
+            .find(|p| p.name() == name)
+            .ok_or_else(|| format!("primitive must be 'ellipsoid' or 'sphere', got {name:?}"))
+    }
+}
+
 /// Settings of the decomposition; every length is relative to the mesh's diagonal `D`.
 #[derive(Clone, Debug)]
 pub struct DecomposeConfig {

@@ -10,7 +10,7 @@
 //! References: SMPTE RP 177 (RGB → XYZ from chromaticities); ITU-R BT.709; the ACES AP1
 //! primaries (SMPTE ST 2065-1 / Academy S-2014-004); K. M. Lam (1985) for Bradford.
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec3, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// CIE xy chromaticities of a space's red, green and blue primaries and its white point.
@@ -74,6 +74,33 @@ impl ColorSpace {
         match self {
             ColorSpace::Rec709 => DMat3::IDENTITY,
             other => conversion(&REC709, &other.chromaticities()),
+        }
+    }
+
+    /// The conversion of the renderer's linear Rec.709 values to this space as the EXR writer
+    /// applies it (and so the Python binding's arrays): the f32 matrix times the value, and the
+    /// value untouched for Rec.709.
+    pub fn converter(self) -> RgbConverter {
+        RgbConverter {
+            space: self,
+            matrix: self.from_rec709().as_mat3(),
+        }
+    }
+}
+
+/// Linear Rec.709 RGB to a [`ColorSpace`], in single precision ([`ColorSpace::converter`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RgbConverter {
+    space: ColorSpace,
+    matrix: Mat3,
+}
+
+impl RgbConverter {
+    /// `rgb` (linear Rec.709) in the converter's space: bit for bit what the EXR stores.
+    pub fn apply(&self, rgb: [f32; 3]) -> [f32; 3] {
+        match self.space {
+            ColorSpace::Rec709 => rgb,
+            _ => (self.matrix * Vec3::from(rgb)).to_array(),
         }
     }
 }

@@ -87,9 +87,26 @@ impl IdMattes {
         }
     }
 
-    /// The float id of each matte.
-    pub(crate) fn ids(&self) -> Vec<f32> {
+    /// The float id of each matte ([`name_id`] of each name).
+    pub fn ids(&self) -> Vec<f32> {
         self.names.iter().map(|n| name_id(n)).collect()
+    }
+
+    /// The matte a rank names, as the EXR writes it: its index into the names when it is one
+    /// of them and covers something; `None` (the EXR's id 0) for an empty rank or one that
+    /// covers nothing.
+    pub fn named(&self, rank: Rank) -> Option<usize> {
+        let m = rank.matte as usize;
+        (m < self.names.len() && rank.coverage > 0.0).then_some(m)
+    }
+
+    /// The manifest of the header's `cryptomatte/<key>/manifest`: each name and the 8 hex
+    /// digits of its id's float bits, for every matte of the shot (also those not seen).
+    pub fn manifest(&self) -> BTreeMap<&str, String> {
+        self.names
+            .iter()
+            .map(|n| (n.as_str(), format!("{:08x}", name_id(n).to_bits())))
+            .collect()
     }
 
     /// The EXR channels of the pixels `pixels` (indices, in the file's order): `(name, values)`.
@@ -103,10 +120,10 @@ impl IdMattes {
                     .iter()
                     .map(|&i| {
                         let r = self.ranks[i].get(rank).copied().unwrap_or(Rank::EMPTY);
-                        match (c % 2, ids.get(r.matte as usize)) {
-                            (0, Some(&id)) if r.coverage > 0.0 => id,
-                            (0, _) => 0.0,
-                            _ => r.coverage,
+                        if c % 2 == 0 {
+                            self.named(r).map_or(0.0, |m| ids[m])
+                        } else {
+                            r.coverage
                         }
                     })
                     .collect();
@@ -120,11 +137,7 @@ impl IdMattes {
     /// `/conversion` and `/manifest`.
     pub(crate) fn header(&self) -> Vec<(String, String)> {
         let key = layer_key(&self.layer);
-        let manifest: BTreeMap<&str, String> = self
-            .names
-            .iter()
-            .map(|n| (n.as_str(), format!("{:08x}", name_id(n).to_bits())))
-            .collect();
+        let manifest = self.manifest();
         let attr = |what: &str| format!("cryptomatte/{key}/{what}");
         vec![
             (attr("name"), self.layer.clone()),

@@ -31,7 +31,7 @@ pub(crate) mod color;
 pub mod cryptomatte;
 pub(crate) mod film;
 
-pub use color::ColorSpace;
+pub use color::{ColorSpace, RgbConverter};
 
 use std::io::Cursor;
 use std::path::Path;
@@ -186,6 +186,21 @@ impl CameraFrame {
     }
 }
 
+/// The output format named `name` (its extension, any case: `exr`, `png`, `vdb`, `vol`), or
+/// the message saying what the formats are: how `nephele render --formats` and the Python
+/// binding's `Scene.shot(formats=…)` read a format.
+pub fn parse_format(name: &str) -> Result<crate::scene::Format, String> {
+    use crate::scene::Format;
+    Format::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
+        let (last, rest) = names.split_last().expect("there are formats");
+        format!(
+            "'{name}' is not a format (use {} or {last})",
+            rest.join(", ")
+        )
+    })
+}
+
 /// The EXR file's bytes with the attributes of `meta`, if any.
 pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::Result<Vec<u8>> {
     use exr::prelude::*;
@@ -199,14 +214,11 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
         .collect();
     let chan = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
     let space = meta.map_or(ColorSpace::Rec709, |m| m.color_space);
-    let to_space = space.from_rec709().as_mat3();
+    let to_space = space.converter();
     let convert = |rgb: &[[f32; 3]], c: usize| {
         pixels
             .iter()
-            .map(|&i| match space {
-                ColorSpace::Rec709 => rgb[i][c],
-                _ => (to_space * Vec3::from(rgb[i]))[c],
-            })
+            .map(|&i| to_space.apply(rgb[i])[c])
             .collect::<Vec<f32>>()
     };
     let crop = |v: &[f32]| pixels.iter().map(|&i| v[i]).collect::<Vec<f32>>();

@@ -316,11 +316,11 @@ impl Shot {
     /// Check, without leaving anything behind, that the frames can be written into the shot's
     /// folder (which need not exist yet).
     pub fn check_writable(&self) -> Result<(), SceneError> {
-        crate::atomic::check_writable(self.dir()).map_err(|e| SceneError::Io {
-            path: self.dir().to_path_buf(),
+        crate::atomic::check_output_dir(self.dir()).map_err(|e| SceneError::Io {
+            path: e.dir,
             source: std::io::Error::new(
-                e.kind(),
-                format!("the output folder is not writable: {e}"),
+                e.source.kind(),
+                format!("the output folder is not writable: {}", e.source),
             ),
         })
     }
