@@ -12,6 +12,7 @@ use glam::{DMat3, DQuat, DVec3, Vec3};
 
 use crate::animate::BlobMotion;
 use crate::blobby::Blob;
+use crate::hash::Fnv1a;
 use crate::render::Mattes;
 use crate::render::{BasePlane, CumulusBase};
 use crate::render::{
@@ -19,10 +20,10 @@ use crate::render::{
     TimeSample,
 };
 
-/// FNV-1a (64 bits) over the canonical bytes written to it.
+/// FNV-1a (64 bits, [`crate::hash::Fnv1a`]) over the canonical bytes written to it.
 #[derive(Clone, Copy, Debug)]
 pub struct Encoder {
-    state: u64,
+    state: Fnv1a,
 }
 
 impl Default for Encoder {
@@ -35,20 +36,18 @@ impl Encoder {
     /// An encoder that has seen nothing (FNV-1a's offset basis).
     pub fn new() -> Encoder {
         Encoder {
-            state: 0xcbf2_9ce4_8422_2325,
+            state: Fnv1a::new(),
         }
     }
 
     /// The hash of everything written so far.
     pub fn finish(&self) -> u64 {
-        self.state
+        self.state.finish()
     }
 
     /// Raw bytes, as they are.
     pub fn bytes(&mut self, bytes: &[u8]) -> &mut Self {
-        for &b in bytes {
-            self.state = (self.state ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
+        self.state.write(bytes);
         self
     }
 

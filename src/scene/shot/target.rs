@@ -303,19 +303,11 @@ pub fn fit_cache_key(identity: &[u8], cfg: &FitConfig) -> u64 {
 /// 64-bit FNV-1a over the concatenated parts, each followed by its length (so part boundaries
 /// count). Stable across platforms and versions.
 pub(crate) fn fnv1a(parts: &[&[u8]]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |b: u8| {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    };
+    let mut h = crate::hash::Fnv1a::new();
     for p in parts {
-        p.iter().copied().for_each(&mut eat);
-        (p.len() as u64)
-            .to_le_bytes()
-            .into_iter()
-            .for_each(&mut eat);
+        h.write(p).write_u64(p.len() as u64);
     }
-    h
+    h.finish()
 }
 
 #[cfg(test)]
