@@ -6,7 +6,7 @@
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 
-use nephele::render::{FrameOptions, FrameRenderer, Reuse};
+use nephele::render::{FrameRenderer, Reuse};
 use nephele::scene::{self, SceneError as CoreSceneError};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -70,22 +70,17 @@ impl Shot {
     }
 }
 
-/// The frame a [`FrameRenderer`] renders for 0-based frame `k` of `shot`: what the shot loop
-/// (`Shot::run`) does for each frame — the frame's settings and blobs, its shutter, the shot's
-/// film — so a frame comes out with the bits of the CLI's file.
+/// The frame a [`FrameRenderer`] renders for 0-based frame `k` of `shot`: the shot loop's own
+/// request (`Shot::frame_request`: the frame's settings, blobs and shutter) into the shot's
+/// film, so a frame comes out with the bits of the CLI's file.
 fn render_with(
     renderer: &mut FrameRenderer,
     shot: &scene::Shot,
     k: u32,
 ) -> Result<(Layers, Reuse), CoreSceneError> {
-    let settings = shot.settings(k)?;
-    let blobs = shot.blobs(k)?;
-    let shutter = shot.shutter(k, settings.quality.time_samples)?;
-    let options = FrameOptions {
-        shutter: shutter.as_ref(),
-        film: shot.film()?,
-    };
-    let (image, report) = renderer.render_reporting(&settings, &blobs, &options);
+    let request = shot.frame_request(k)?;
+    let options = request.options(shot.film()?);
+    let (image, report) = renderer.render_reporting(&request.settings, &request.blobs, &options);
     let space = shot.scene().file.output.colorspace;
     Ok((Layers::of(image, space), report.reuse))
 }
