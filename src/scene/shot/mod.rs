@@ -245,11 +245,6 @@ impl Shot {
         Ok(self.film.get_or_init(|| film))
     }
 
-    /// True for a `--preview` run.
-    pub fn is_preview(&self) -> bool {
-        self.options.preview
-    }
-
     /// The target (loaded from its file, its fit cache, or fitted and cached now) and the
     /// planned animation; done once, on first call.
     pub fn prepared(&self) -> Result<&Prepared, SceneError> {
