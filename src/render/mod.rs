@@ -96,8 +96,8 @@ pub use output::film::{Film, Region};
 // What is rendered, and from where:
 pub use camera::{Camera, CameraRays};
 pub use settings::{
-    BasePlane, CloudMaterial, CumulusBase, NoiseSettings, Quality, QualityPreset, RenderSettings,
-    Sky, Sun,
+    BasePlane, CloudMaterial, CumulusBase, InvalidField, NoiseSettings, Quality, QualityPreset,
+    RenderSettings, Sky, Sun,
 };
 // The integrator on media of one's own, and what it asks of them:
 pub use camera::{Frustum, Ray};

@@ -122,8 +122,8 @@ fn billow_of(n: f32) -> f32 {
     x * (2.0 - x)
 }
 
-/// Most octaves [`Billows`] holds.
-pub(crate) const MAX_OCTAVES: usize = 8;
+/// Most octaves [`Billows`] holds: the scene's limit, checked by [`crate::render::NoiseSettings::validate`].
+pub(crate) const MAX_OCTAVES: usize = crate::render::NoiseSettings::MAX_OCTAVES;
 
 /// Share of an octave's depth that lies below the surface: a billow pushes the surface out by
 /// up to `(1 − CREASE)·a_k` on its top and cuts in by up to `CREASE·a_k` in its creases. A

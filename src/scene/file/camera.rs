@@ -12,7 +12,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Aabb;
-use crate::render::Camera;
+use crate::render::{Camera, InvalidField};
 
 /// The camera: automatic framing of the target, or fixed (optionally orbiting), or keyframes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -93,20 +93,26 @@ impl Default for FixedCamera {
 impl CameraSpec {
     /// Check the camera's values: finite, a field of view in (0, 180) degrees, a positive
     /// distance, `position ≠ look_at`. Keyframes are checked while parsing, with the file
-    /// position. The error is the dotted field and what is wrong.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    /// position.
+    pub fn validate(&self) -> Result<(), InvalidField> {
         let finite = |field: &'static str, v: &[f32]| {
             if v.iter().all(|x| x.is_finite()) {
                 Ok(())
             } else {
-                Err((field, format!("must be finite, got {v:?}")))
+                Err(InvalidField::new(
+                    field,
+                    format!("must be finite, got {v:?}"),
+                ))
             }
         };
         let fov = |f: f32| {
             if f.is_finite() && f > 0.0 && f < 180.0 {
                 Ok(())
             } else {
-                Err(("camera.fov_deg", format!("must be in (0, 180), got {f}")))
+                Err(InvalidField::new(
+                    "camera.fov_deg",
+                    format!("must be in (0, 180), got {f}"),
+                ))
             }
         };
         match self {
@@ -114,7 +120,7 @@ impl CameraSpec {
                 finite("camera", &[c.azimuth_deg, c.elevation_deg, c.orbit_deg])?;
                 fov(c.fov_deg)?;
                 if !(c.distance.is_finite() && c.distance > 0.0) {
-                    return Err((
+                    return Err(InvalidField::new(
                         "camera.distance",
                         format!("must be positive, got {}", c.distance),
                     ));
@@ -127,7 +133,10 @@ impl CameraSpec {
                 finite("camera.up", &c.up.to_array())?;
                 fov(c.fov_deg)?;
                 if c.position.distance(c.look_at) <= 0.0 {
-                    return Err(("camera", "position and look_at must differ".to_string()));
+                    return Err(InvalidField::new(
+                        "camera",
+                        "position and look_at must differ".to_string(),
+                    ));
                 }
             }
             CameraSpec::Keyframes(_) => {}

@@ -347,11 +347,11 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         ));
     }
     finite("exposure", &[s.exposure])?;
-    s.camera
-        .validate()
-        .map_err(|(field, message)| bad(field, message))?;
-    validate_light(&bad, &s.sun, &s.sky)?;
-    validate_cloud(&bad, &s.cloud)?;
+    s.camera.validate().map_err(|e| bad(e.field, e.message))?;
+    let field = |e: crate::render::InvalidField| bad(e.field, e.message);
+    s.sun.validate().map_err(field)?;
+    s.sky.validate(&s.sun).map_err(field)?;
+    s.cloud.validate().map_err(field)?;
     crate::render::memory::check_size(s.shot.width, s.shot.height, s.quality)
         .map_err(|message| bad("shot", message))?;
     Format::check_list(&s.output.formats).map_err(|message| bad("output.formats", message))?;
@@ -395,124 +395,4 @@ fn check_finite(
     } else {
         Err(bad(field, format!("must be finite, got {v:?}")))
     }
-}
-
-/// `sun` and `sky`: finite values, angles and model parameters in range.
-fn validate_light(
-    bad: &dyn Fn(&str, String) -> SceneError,
-    sun: &Sun,
-    sky: &Sky,
-) -> Result<(), SceneError> {
-    let finite = |field: &str, v: &[f32]| check_finite(bad, field, v);
-    finite("sun.direction", &sun.direction.to_array())?;
-    finite("sun.color", &sun.color.to_array())?;
-    finite("sun.azimuth_deg", &[sun.azimuth_deg])?;
-    if !(sun.intensity.is_finite() && sun.intensity >= 0.0) {
-        return Err(bad(
-            "sun.intensity",
-            format!("must be ≥ 0, got {}", sun.intensity),
-        ));
-    }
-    if sun.color.min_element() < 0.0 {
-        return Err(bad(
-            "sun.color",
-            format!("must not be negative, got {:?}", sun.color.to_array()),
-        ));
-    }
-    match sun.elevation_deg {
-        Some(el) if !(0.0..=90.0).contains(&el) => {
-            return Err(bad(
-                "sun.elevation_deg",
-                format!("must be in 0..=90 (degrees above the horizon), got {el}"),
-            ));
-        }
-        None if sun.direction.length() <= 0.0 => {
-            return Err(bad("sun.direction", "must not be zero".to_string()));
-        }
-        _ => {}
-    }
-    match *sky {
-        Sky::Gradient { zenith, horizon } => {
-            finite("sky.zenith", &zenith.to_array())?;
-            finite("sky.horizon", &horizon.to_array())?;
-            if zenith.min_element() < 0.0 || horizon.min_element() < 0.0 {
-                return Err(bad("sky", "colours must not be negative".to_string()));
-            }
-        }
-        Sky::HosekWilkie {
-            turbidity,
-            ground_albedo,
-        } => {
-            if !(1.0..=10.0).contains(&turbidity) {
-                return Err(bad(
-                    "sky.turbidity",
-                    format!("must be in 1..=10, got {turbidity}"),
-                ));
-            }
-            if !(0.0..=1.0).contains(&ground_albedo) {
-                return Err(bad(
-                    "sky.ground_albedo",
-                    format!("must be in 0..=1, got {ground_albedo}"),
-                ));
-            }
-            if sun.elevation() < 0.0 {
-                return Err(bad(
-                    "sun",
-                    "a HosekWilkie sky needs the sun above the horizon (set sun.elevation_deg)"
-                        .to_string(),
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// `cloud`: non-negative densities and noise scales, albedo and phase in range.
-fn validate_cloud(
-    bad: &dyn Fn(&str, String) -> SceneError,
-    c: &CloudMaterial,
-) -> Result<(), SceneError> {
-    for (field, v) in [
-        ("cloud.density", c.density),
-        ("cloud.edge", c.edge),
-        ("cloud.noise.amplitude", c.noise.amplitude),
-        ("cloud.noise.frequency", c.noise.frequency),
-        ("cloud.noise.evolve", c.noise.evolve),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(bad(field, format!("must be a number ≥ 0, got {v}")));
-        }
-    }
-    if !(0.0..=1.0).contains(&c.albedo) {
-        return Err(bad(
-            "cloud.albedo",
-            format!("must be in 0..=1, got {}", c.albedo),
-        ));
-    }
-    if !(c.phase_g > -1.0 && c.phase_g < 1.0) {
-        return Err(bad(
-            "cloud.phase_g",
-            format!("must be in (−1, 1), got {}", c.phase_g),
-        ));
-    }
-    if let Some(b) = c.base {
-        for (field, v) in [
-            ("cloud.base.height", b.height),
-            ("cloud.base.softness", b.softness),
-        ] {
-            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
-                return Err(bad(
-                    field,
-                    format!("must be in 0..=1 (a fraction of the target's height), got {v}"),
-                ));
-            }
-        }
-    }
-    if c.noise.octaves > 8 {
-        return Err(bad(
-            "cloud.noise.octaves",
-            format!("must be at most 8, got {}", c.noise.octaves),
-        ));
-    }
-    Ok(())
 }

@@ -2,6 +2,10 @@
 //! The serde types here are read directly from scene files (unknown fields are errors; every
 //! field has a default, documented in `scenes/README.md`).
 
+mod checks;
+
+pub use checks::InvalidField;
+
 use glam::Vec3;
 
 use crate::render::camera::Camera;
@@ -102,12 +106,17 @@ pub struct NoiseSettings {
     /// (each further octave is about twice as fine; an octave appears only on parts at least
     /// as large as its wavelength).
     pub frequency: f32,
-    /// Most octaves (at most 8); octaves finer than three pixels of the frame are left out
+    /// Most octaves (at most [`NoiseSettings::MAX_OCTAVES`]); octaves finer than three pixels of the frame are left out
     /// (`FINEST_BILLOW_PIXELS`) (0 = smooth blobs).
     pub octaves: u32,
     /// Slow evolution of the noise, in cycles per second (0 = frozen; the noise then only
     /// moves with the blobs).
     pub evolve: f32,
+}
+
+impl NoiseSettings {
+    /// Most octaves the billows hold (the noise's own arrays are this long).
+    pub const MAX_OCTAVES: usize = 8;
 }
 
 impl Default for NoiseSettings {
