@@ -50,9 +50,13 @@ pub fn check_writable(dir: &Path) -> io::Result<()> {
             existing.display()
         )));
     }
+    // Created as every temporary is (new, never through a link, locked while it exists), so
+    // a probe left by a killed process is removed like the others.
     let probe = existing.join(format!(".nephele-probe.{}.tmp", process_token()));
-    File::create(&probe)?;
-    std::fs::remove_file(&probe)
+    let file = create_temp(&probe)?;
+    let removed = std::fs::remove_file(&probe);
+    drop(file);
+    removed
 }
 
 /// An output folder files cannot be written in: `output folder DIR is not writable`, its

@@ -153,11 +153,23 @@ fn host_name() -> String {
 }
 
 /// True when `target` (the file a temporary was to become, [`crate::atomic::temp_target`]) is
-/// one of the files a render of shot `name` writes: a frame file or manifest
-/// (`<name>_<digits>[.region].<ext>`), its statistics (`<name>_stats.csv`), or a cache shared
-/// by the shots of the folder (`target-<hash>.ron`, `blend-<key>.ron`).
+/// one of the files nephele writes for shot `name`: a frame file or manifest
+/// (`<name>_<digits>[.region].<ext>`), its statistics (`<name>_stats.csv`), its job files and
+/// USD stage, a cache shared by the shots of the folder (`target-<hash>.ron`,
+/// `blend-<key>.ron`), or the writability probe (`nephele-probe`).
 pub fn is_shot_file(target: &str, name: &str) -> bool {
-    if target == format!("{name}_stats.csv") {
+    // The shot's own files beside its frames: statistics, job files, the USD stage; and the
+    // writability probe every run makes.
+    let own = [
+        format!("{name}_stats.csv"),
+        format!("{name}.sbatch"),
+        format!("{name}.prepare.sbatch"),
+        format!("{name}.k8s.yaml"),
+        format!("{name}.prepare.k8s.yaml"),
+        format!("{name}.usda"),
+        "nephele-probe".to_string(),
+    ];
+    if own.iter().any(|f| f == target) {
         return true;
     }
     let hex = |s: &str| !s.is_empty() && s.chars().all(|c| c.is_ascii_hexdigit());
@@ -225,6 +237,9 @@ mod tests {
             ".duck_stats.csv.1-2.tmp",
             ".target-00ff12.ron.1-2.tmp",
             ".blend-00ff12.ron.1-2.tmp",
+            ".duck.sbatch.1-2.tmp",
+            ".duck.usda.1-2.tmp",
+            ".nephele-probe.1-2.tmp",
         ] {
             assert!(ours(f), "{f}");
         }
