@@ -10,7 +10,7 @@
 //! Always-run test: a small comparison when Python with `mitsuba` is importable (set
 //! `NEPHELE_PYTHON` to pick the interpreter; `.ci/run` makes `target/mitsuba-venv`), otherwise
 //! it prints that it skipped, or fails under `NEPHELE_REQUIRE_READERS=1` (`readers_support`).
-//! Full comparison (documented in the README):
+//! Full comparison (documented in docs/MEASUREMENTS.md, "Checked against Mitsuba 3"):
 //! `cargo test --release --test it -- --ignored --nocapture mitsuba::mitsuba_full`
 //! with optional `NEPHELE_MITSUBA_SCENE=scenes/x.ron NEPHELE_MITSUBA_FRAME=n` (default: the
 //! duck's last frame), `NEPHELE_MITSUBA_SPP`, `NEPHELE_MITSUBA_GRID` (cells along the cloud's
@@ -313,12 +313,12 @@ fn single_scattering_matches_mitsuba() {
     );
     let json = compare(&py, &dir, 64, None, false);
     eprintln!("{json}");
-    // A small run (160×90, a 96-cell grid, 64 spp; the full one, README, gives the quoted
-    // figures). On the billowy density it measures end to end 0.106, same grid 0.018, mean
-    // ratio 1.024 (MS luminance 0.640 vs 0.679, base/top 0.732 vs 0.723; Mitsuba 3.6.4): at
-    // 160×90 one ray a pixel point-samples billows Mitsuba's box filter averages, most of the
-    // end-to-end figure. The bars leave room for the reference's noise and catch a regression
-    // of the light model (before the sky cells this run measured 0.205).
+    // A small run (160×90, a 96-cell grid, 64 spp; the full one, docs/MEASUREMENTS.md, gives
+    // the quoted figures). On the billowy density it measures end to end 0.106, same grid
+    // 0.018, mean ratio 1.024 (MS luminance 0.640 vs 0.679, base/top 0.732 vs 0.723; Mitsuba
+    // 3.6.4): at 160×90 one ray a pixel point-samples billows Mitsuba's box filter averages,
+    // most of the end-to-end figure. The bars leave room for the reference's noise and catch a
+    // regression of the light model (before the sky cells this run measured 0.205).
     let rmse = number(&json, "ss_rel_rmse");
     assert!(
         rmse < 0.12,
@@ -371,7 +371,7 @@ fn mitsuba_full_comparison() {
         .unwrap_or(1024);
     let (ss, ms) = write_inputs(&repo().join(&scene), frame, (640, 360), grid_res, &dir);
     eprintln!("nephele: single scattering {ss:.3} s, with the MS approximation {ms:.3} s");
-    // The README's pictures: renders/mitsuba-<scene>.png (the default scene's is
+    // The pictures of docs/MEASUREMENTS.md: renders/mitsuba-<scene>.png (the default scene's is
     // renders/mitsuba-comparison.png).
     let stem = Path::new(&scene)
         .file_stem()

@@ -332,9 +332,10 @@ fn frame_renderer_reuses_without_changing_a_bit() {
 }
 
 /// Hash of the 64×36 frame of `seeded_frame_is_pinned_and_thread_count_independent` (update
-/// deliberately when the renderer's output changes, with the README's Mitsuba figures
-/// re-measured; last: the billows' band bounded by the lift of the largest push, so the march
-/// steps coarsely where no billow top can reach). Part of the render-version fingerprint
+/// deliberately when the renderer's output changes, with the Mitsuba figures of
+/// docs/MEASUREMENTS.md, "Checked against Mitsuba 3", re-measured; last: the billows' band
+/// bounded by the lift of the largest push, so the march steps coarsely where no billow top can
+/// reach). Part of the render-version fingerprint
 /// (`scene::pinned_hashes_move_only_with_the_render_version`): a new value needs a new
 /// `nephele::RENDER_VERSION`.
 pub(crate) const PINNED: u64 = 0x0a1e_1b23_c428_cbf7;

@@ -1,8 +1,8 @@
-//! Picture sheets of every builtin scene (README): an early, a middle and the final frame side
-//! by side in `renders/sheet-<scene>.png`, and the golden-hour backlit frame
-//! `renders/duck-golden-hour.png`. Scenes whose target is unavailable (bunny and horse need
-//! `../shared/models`) are skipped with a message. Re-run after changing the look or the
-//! animation:
+//! Picture sheets of every builtin scene (docs/MEASUREMENTS.md, "The cloud look"; the README
+//! shows some): an early, a middle and the final frame side by side in
+//! `renders/sheet-<scene>.png`, and the golden-hour backlit frame `renders/duck-golden-hour.png`.
+//! Scenes whose target is unavailable (bunny and horse need `../shared/models`) are skipped with
+//! a message. Re-run after changing the look or the animation:
 //!
 //! `cargo test --release --test it -- --ignored --nocapture sheets::` (`NEPHELE_SHEETS=a,b`: only those scenes)
 

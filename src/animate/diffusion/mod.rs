@@ -52,9 +52,9 @@
 //! `B = γ·(1+A)/A`, `γ` stepping down by 0.05 to at least 0.5: a cloud that starts fuller
 //! than its target cannot grow into it without shrinking somewhere.
 //!
-//! Measured on the shipped duck and horse shots (README, "Animation statistics"): one piece at
-//! every frame, at most a third of the final volume added per second, and no frame with less
-//! visible volume than the frame before (1 % lattice).
+//! Measured on the shipped duck and horse shots (docs/MEASUREMENTS.md, "Animation statistics"):
+//! one piece at every frame, at most a third of the final volume added per second, and no frame
+//! with less visible volume than the frame before (1 % lattice).
 
 use std::sync::OnceLock;
 

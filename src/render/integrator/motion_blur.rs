@@ -25,8 +25,8 @@
 //! Cost: the rays of a pixel are its time samples, so with one ray per pixel (`Final`) each time
 //! sample costs one more march of the frame, plus one blob conversion (the light grid is shared);
 //! with `samples ≥ time_samples` the time samples ride on the anti-aliasing rays and cost only
-//! the conversion (README, "Motion blur"). A blurred pixel already traces several rays, so
-//! `edge_samples` adds none.
+//! the conversion (docs/MEASUREMENTS.md, "Motion blur"). A blurred pixel already traces several
+//! rays, so `edge_samples` adds none.
 
 use glam::{DVec3, Vec3A};
 use rand::RngExt;

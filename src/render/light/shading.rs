@@ -210,12 +210,13 @@ impl Shading {
 }
 
 /// Share of the isotropic sky estimate that the multiple-scattering octaves turn toward the
-/// eye. Calibrated against Mitsuba's full transport of the same sky (README).
+/// eye. Calibrated against Mitsuba's full transport of the same sky (docs/MEASUREMENTS.md,
+/// "Checked against Mitsuba 3").
 pub(crate) const SKY_PHASE: f32 = 0.64;
 
 /// Contribution factor `b` of each further multiple-scattering octave (Wrenninge et al.);
 /// fitted with [`MS_ANISOTROPY`] against Mitsuba's full transport of a side-lit and a backlit
-/// shot together (README, `tests/it/mitsuba.rs`).
+/// shot together (docs/MEASUREMENTS.md, "Checked against Mitsuba 3"; `tests/it/mitsuba.rs`).
 pub(crate) const MS_CONTRIBUTION: f32 = 0.85;
 /// Anisotropy factor `c` of each further octave. Multiply scattered light in a forward-peaked
 /// cloud stays forward-peaked: with `c = ½` a backlit cloud came out 21 % too dark.

@@ -116,11 +116,12 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 }
 
 /// Spacing of the sky's grid in cells of the light grid. Three (not two, as it was) costs a
-/// third as many sweep steps; against Mitsuba (README shots, 256-spp references) the side-lit
-/// duck's single scattering came out 4.93 % (4.95 % at two) and the backlit golden hour 9.30 %
-/// (9.38 %), the multiple-scattering means and base/top within 0.001 of two's — with the
-/// surface shift ([`SURFACE_SHIFT`]) kept in world units. Kept in world units is the point: a
-/// shift of one sky cell at three made the duck 2 % too bright (5.9 %).
+/// third as many sweep steps; against Mitsuba (the shots of docs/MEASUREMENTS.md, "Checked
+/// against Mitsuba 3", 256-spp references) the side-lit duck's single scattering came out
+/// 4.93 % (4.95 % at two) and the backlit golden hour 9.30 % (9.38 %), the multiple-scattering
+/// means and base/top within 0.001 of two's — with the surface shift ([`SURFACE_SHIFT`]) kept
+/// in world units. Kept in world units is the point: a shift of one sky cell at three made the
+/// duck 2 % too bright (5.9 %).
 pub(crate) const SKY_SPACING: usize = 3;
 
 /// Shift of the stored sky depths toward the light, in cells of the light grid (not of the sky
@@ -231,8 +232,8 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, shift: f32, out: &mut Swe
         // light depths marched exactly: the sky's share of the side-lit duck came out 3.5 %
         // dark without the shift (mean ratio 0.967, 4.4 % relative RMSE), 0.995 and 2.6 % with
         // one cell of a grid twice as coarse as the sun's (the `shift` kept since); the backlit
-        // golden-hour shot does not move (README). The sun's
-        // light-aligned grid needs none.
+        // golden-hour shot does not move (docs/MEASUREMENTS.md, "Checked against Mitsuba 3").
+        // The sun's light-aligned grid needs none.
         for ib in 0..n[b] {
             for ia in 0..n[a] {
                 let idx = ia * stride[a] + ib * stride[b] + slice;

@@ -270,11 +270,11 @@ impl Quality {
         match preset {
             QualityPreset::Preview => Quality::preview(),
             QualityPreset::Final => Quality::final_frame(),
-            // Measured on the backlit golden-hour shot against Mitsuba 3 (README): the light
-            // grid's cells and the edge's rays are what bring its silver lining within 5 %;
-            // rays in the opaque body and steps finer than 0.04 barely move it. A fourth
-            // scattering octave made that shot's multiple scattering 35 % brighter than full
-            // transport (three: within 3 %).
+            // Measured on the backlit golden-hour shot against Mitsuba 3 (docs/MEASUREMENTS.md,
+            // "Checked against Mitsuba 3"): the light grid's cells and the edge's rays are what
+            // bring its silver lining within 5 %; rays in the opaque body and steps finer than
+            // 0.04 barely move it. A fourth scattering octave made that shot's multiple
+            // scattering 35 % brighter than full transport (three: within 3 %).
             QualityPreset::Production => Quality {
                 step_scale: 0.2,
                 shadow_grid: 448,
