@@ -18,8 +18,8 @@
 //!   multiple-scattering octaves (`oct2.png`, `oct3.png`);
 //! - `light`: no picture: the light grid's optical depths along the cloud's x axis, printed.
 //!
-//! The cloud and its settings are a copy of the renderer tests' (`src/render/fixture.rs`, which
-//! is not public): the same blobs for the same `n` and seed.
+//! The cloud and its settings are the renderer tests' own (`src/render/fixture.rs`, included
+//! by path as the tests include it): the same blobs for the same `n` and seed.
 
 use std::path::{Path, PathBuf};
 
@@ -30,7 +30,12 @@ use nephele::render::{
     BlobMedium, Camera, CloudMaterial, Frame, LightGrid, Quality, RenderSettings, ShadowDepths,
     Sky, Sun, output, render_frame,
 };
-use rand::{RngExt, SeedableRng};
+
+// The renderer tests' cloud and the settings that frame it, the very file the tests include.
+#[allow(dead_code)]
+#[path = "../src/render/fixture.rs"]
+mod fixture;
+use fixture::{settings, test_cloud};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -192,75 +197,4 @@ fn lum_stats(f: &Frame) -> String {
         q(0.5),
         q(0.95)
     )
-}
-
-/// A blobby cloud about 2 units across: `n` ellipsoids (A = 1, B = (1+A)/A) in a body, a head
-/// and a tail, with random sizes and orientations (a copy of the renderer tests' cloud).
-fn test_cloud(n: usize, seed: u64) -> Vec<Blob> {
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-    let lobes = [
-        (DVec3::new(0.0, 0.0, 0.0), 0.75),
-        (DVec3::new(0.65, 0.45, 0.1), 0.42),
-        (DVec3::new(-0.7, 0.2, -0.1), 0.3),
-    ];
-    (0..n)
-        .map(|i| {
-            let (c, r) = lobes[[0, 0, 0, 1, 1, 2][i % 6]];
-            let p = loop {
-                let p = DVec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if p.length() < 1.0 {
-                    break p;
-                }
-            };
-            let d = p.length();
-            // Smaller blobs near the lobe's surface, bigger inside.
-            let size = r * (0.45 - 0.25 * d);
-            let axes = DVec3::new(
-                size * rng.random_range(0.7..1.3),
-                size * rng.random_range(0.5..1.0),
-                size * rng.random_range(0.7..1.2),
-            );
-            let a = 1.0;
-            Blob {
-                center: c + p * (r * 0.8),
-                rotation: DQuat::from_euler(
-                    glam::EulerRot::XYZ,
-                    rng.random_range(0.0..6.3),
-                    rng.random_range(0.0..6.3),
-                    rng.random_range(0.0..6.3),
-                ),
-                semi_axes: axes,
-                a,
-                b: (1.0 + a) / a,
-            }
-        })
-        .collect()
-}
-
-/// The settings the renderer tests frame [`test_cloud`] with: `width × height`, `quality`, the
-/// default sun, sky and cloud, seed 7.
-fn settings(width: u32, height: u32, quality: Quality) -> RenderSettings {
-    RenderSettings {
-        width,
-        height,
-        camera: Camera {
-            position: Vec3::new(0.3, 0.6, 4.2),
-            look_at: Vec3::new(0.0, 0.1, 0.0),
-            up: Vec3::Y,
-            fov_deg: 38.0,
-        },
-        sun: Sun::default(),
-        sky: Sky::default(),
-        cloud: CloudMaterial::default(),
-        exposure: 0.0,
-        length_scale: 3.5,
-        seed: 7,
-        time: 0.0,
-        quality,
-        base: None,
-    }
 }
