@@ -18,17 +18,17 @@ impl InvalidField {
     pub fn new(field: &'static str, message: String) -> InvalidField {
         InvalidField { field, message }
     }
-}
 
-/// Every value of `v` finite, or the error naming `field`.
-fn finite(field: &'static str, v: &[f32]) -> Result<(), InvalidField> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
-        Err(InvalidField::new(
-            field,
-            format!("must be finite, got {v:?}"),
-        ))
+    /// Every value of `v` finite, or the error naming `field`.
+    pub fn check_finite(field: &'static str, v: &[f32]) -> Result<(), InvalidField> {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(InvalidField::new(
+                field,
+                format!("must be finite, got {v:?}"),
+            ))
+        }
     }
 }
 
@@ -36,9 +36,9 @@ impl Sun {
     /// Finite values, a non-negative intensity and colour, an elevation in 0..=90 degrees (or
     /// a non-zero direction).
     pub fn validate(&self) -> Result<(), InvalidField> {
-        finite("sun.direction", &self.direction.to_array())?;
-        finite("sun.color", &self.color.to_array())?;
-        finite("sun.azimuth_deg", &[self.azimuth_deg])?;
+        InvalidField::check_finite("sun.direction", &self.direction.to_array())?;
+        InvalidField::check_finite("sun.color", &self.color.to_array())?;
+        InvalidField::check_finite("sun.azimuth_deg", &[self.azimuth_deg])?;
         if !(self.intensity.is_finite() && self.intensity >= 0.0) {
             return Err(InvalidField::new(
                 "sun.intensity",
@@ -71,8 +71,8 @@ impl Sky {
     pub fn validate(&self, sun: &Sun) -> Result<(), InvalidField> {
         match *self {
             Sky::Gradient { zenith, horizon } => {
-                finite("sky.zenith", &zenith.to_array())?;
-                finite("sky.horizon", &horizon.to_array())?;
+                InvalidField::check_finite("sky.zenith", &zenith.to_array())?;
+                InvalidField::check_finite("sky.horizon", &horizon.to_array())?;
                 if zenith.min_element() < 0.0 || horizon.min_element() < 0.0 {
                     return Err(InvalidField::new(
                         "sky",

@@ -95,16 +95,7 @@ impl CameraSpec {
     /// distance, `position ≠ look_at`. Keyframes are checked while parsing, with the file
     /// position.
     pub fn validate(&self) -> Result<(), InvalidField> {
-        let finite = |field: &'static str, v: &[f32]| {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err(InvalidField::new(
-                    field,
-                    format!("must be finite, got {v:?}"),
-                ))
-            }
-        };
+        let finite = InvalidField::check_finite;
         let fov = |f: f32| {
             if f.is_finite() && f > 0.0 && f < 180.0 {
                 Ok(())
