@@ -119,6 +119,13 @@ pub(crate) fn scene_err(e: CoreSceneError) -> PyErr {
             CoreSceneError::Invalid { path, field, .. } => {
                 (Some(path), None, None, Some(field.as_str()))
             }
+            CoreSceneError::InvalidAt {
+                path,
+                line,
+                column,
+                field,
+                ..
+            } => (Some(path), Some(*line), Some(*column), Some(field.as_str())),
             CoreSceneError::Io { path, .. } => (Some(path), None, None, None),
             CoreSceneError::MissingTarget { scene, .. }
             | CoreSceneError::Mesh { scene, .. }

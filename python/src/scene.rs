@@ -52,7 +52,8 @@ impl Scene {
         })?;
         let text = ron::ser::to_string_pretty(&file, ron::ser::PrettyConfig::new())
             .map_err(|e| scene_field_err(&path, ".", e))?;
-        let scene = scene::scene_from_str(&path, &text).map_err(scene_err)?;
+        // The RON is ours, not the user's: its lines would locate nothing for them.
+        let scene = scene::scene_from_str(&path, &text).map_err(|e| scene_err(e.unlocated()))?;
         Ok(Scene { scene })
     }
 

@@ -64,6 +64,20 @@ pub enum SceneError {
         /// What is wrong, with the value found.
         message: String,
     },
+    /// A value out of range, at the place in the scene file where it is written.
+    #[error("{path}:{line}:{column}: {field}: {message}")]
+    InvalidAt {
+        /// Scene file.
+        path: PathBuf,
+        /// 1-based line of the field's name.
+        line: usize,
+        /// 1-based column of the field's name.
+        column: usize,
+        /// Dotted field name (`shot.fps`).
+        field: String,
+        /// What is wrong, with the value found.
+        message: String,
+    },
     /// The target's model or mesh file does not exist.
     #[error(
         "{scene}: target file {} does not exist (relative paths resolve against the scene file's folder)",
@@ -145,6 +159,52 @@ pub struct Scene {
     pub name: String,
 }
 
+impl SceneError {
+    /// This error at its place in the scene's `text`: a value out of range whose field the
+    /// text writes becomes [`SceneError::InvalidAt`]; anything else is returned as it is.
+    pub fn located(self, text: &str) -> SceneError {
+        match self {
+            SceneError::Invalid {
+                path,
+                field,
+                message,
+            } => match file::locate::locate(text, &field) {
+                Some((line, column)) => SceneError::InvalidAt {
+                    path,
+                    line,
+                    column,
+                    field,
+                    message,
+                },
+                None => SceneError::Invalid {
+                    path,
+                    field,
+                    message,
+                },
+            },
+            other => other,
+        }
+    }
+
+    /// This error without a place in the text (for text a front end generated, whose lines
+    /// mean nothing to the user).
+    pub fn unlocated(self) -> SceneError {
+        match self {
+            SceneError::InvalidAt {
+                path,
+                field,
+                message,
+                ..
+            } => SceneError::Invalid {
+                path,
+                field,
+                message,
+            },
+            other => other,
+        }
+    }
+}
+
 /// Read, parse and validate a scene file; resolve its paths and check that the target exists.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     let text =
@@ -160,7 +220,7 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 /// [`load_scene`] on text already read (`path` locates relative paths and labels errors).
 pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let mut file = file::parse(path, text)?;
-    file::validate(path, &file)?;
+    file::validate(path, &file).map_err(|e| e.located(text))?;
     let base = path.parent().unwrap_or(Path::new(""));
     let resolve = |p: &str| -> Result<String, SceneError> {
         if p.starts_with("builtin:") {

@@ -219,7 +219,7 @@ fn a_1001_based_shot_agrees_in_files_exr_usd_farm_chunks_and_stats() {
     );
     let t = fails(nephele(&dir).args(["render", "d.ron"]));
     assert!(
-        t.contains("d.ron: frames: need 1001 ≤ first ≤ last ≤ 1012"),
+        t.contains("d.ron:1:144: frames: need 1001 ≤ first ≤ last ≤ 1012"),
         "{t}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
@@ -408,18 +408,18 @@ fn bad_input_is_refused_before_any_work_with_each_cause_once() {
     write_scene(&dir, "huge", "fps: 1000, seconds: 1e9", "");
     let t = fails(nephele(&dir).args(["render", "huge.ron"]));
     assert!(
-        t.contains("huge.ron: shot: ") && t.contains("more than the limit of 1000000"),
+        t.contains("huge.ron:1:41: shot: ") && t.contains("more than the limit of 1000000"),
         "{t}"
     );
     assert!(!dir.join("out").exists(), "nothing is written");
     for (fields, what) in [
         (
             "output: (padding: 0)",
-            "c.ron: output.padding: must be 1 to 10 digits",
+            "c.ron:1:50: output.padding: must be 1 to 10 digits",
         ),
         (
             "shot: (start_frame: 4294967295)",
-            "c.ron: shot.start_frame: 4294967295 + 96 frames",
+            "c.ron:1:48: shot.start_frame: 4294967295 + 96 frames",
         ),
     ] {
         std::fs::write(

@@ -360,7 +360,7 @@ fn duplicate_formats_are_refused() {
     write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Png, Exr, Png");
     let t = fails(nephele(&dir).args(["render", "c.ron"]));
     assert!(
-        t.contains("c.ron: output.formats: png is listed twice"),
+        t.contains("c.ron:1:172: output.formats: png is listed twice"),
         "{t}"
     );
     write_scene(&dir, "c", "(1.0, -1.0, 0.0)", 24, "Png");

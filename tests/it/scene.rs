@@ -251,9 +251,29 @@ fn out_of_range_values_name_the_field() {
         let text = format!("Scene(target: Model(\"model.ron\"), {field_text})");
         let e = load_err(name, &text);
         let msg = e.to_string();
+        // Located like a parse error: the line and column of the field's own name.
         match &e {
-            SceneError::Invalid { field: f, .. } => assert_eq!(f, field, "{msg}"),
-            other => panic!("{name}: expected a validation error, got {other}"),
+            SceneError::InvalidAt {
+                field: f,
+                line,
+                column,
+                ..
+            } => {
+                assert_eq!(f, field, "{msg}");
+                let at: String = text
+                    .lines()
+                    .nth(line - 1)
+                    .unwrap_or("")
+                    .chars()
+                    .skip(column - 1)
+                    .collect();
+                let last = field.rsplit('.').next().unwrap();
+                assert!(
+                    at.starts_with(&format!("{last}:")),
+                    "{name}: {msg} points at {at:?}"
+                );
+            }
+            other => panic!("{name}: expected a located validation error, got {other}"),
         }
         assert!(msg.contains("bad.ron"), "{msg}");
         if name == "huge" {
