@@ -97,6 +97,9 @@ def test_bad_scene_raises_the_cli_located_message(tmp_path, cli):
     with pytest.raises(nephele.SceneError) as e:
         nephele.Scene.load(invalid)
     assert e.value.field == "shot.fps"
+    # Located like a parse error: the field's own name in the file.
+    assert (e.value.line, e.value.column) == (1, 50)
+    assert str(e.value).startswith(f"{invalid}:1:50: shot.fps: ")
     assert str(e.value) in cli("render", invalid, check=False).stderr
 
     with pytest.raises(nephele.SceneError, match="does not exist"):
