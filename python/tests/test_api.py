@@ -98,8 +98,8 @@ def test_bad_scene_raises_the_cli_located_message(tmp_path, cli):
         nephele.Scene.load(invalid)
     assert e.value.field == "shot.fps"
     # Located like a parse error: the field's own name in the file.
-    assert (e.value.line, e.value.column) == (1, 50)
-    assert str(e.value).startswith(f"{invalid}:1:50: shot.fps: ")
+    assert (e.value.line, e.value.column) == (1, 49)
+    assert str(e.value).startswith(f"{invalid}:1:49: shot.fps: ")
     assert str(e.value) in cli("render", invalid, check=False).stderr
 
     with pytest.raises(nephele.SceneError, match="does not exist"):
