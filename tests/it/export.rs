@@ -650,7 +650,7 @@ fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
         );
         let err = scene::load_scene(&path).unwrap_err();
         assert!(
-            matches!(&err, SceneError::Invalid { field, .. } if field == "output.voxel"),
+            matches!(&err, SceneError::InvalidAt { field, .. } if field == "output.voxel"),
             "{bad}: {err}"
         );
     }

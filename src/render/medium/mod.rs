@@ -17,8 +17,6 @@ pub(crate) mod blobs;
 pub(crate) mod density;
 pub(crate) mod lattice;
 pub(crate) mod noise;
-mod noise_lanes;
-mod noise_simd;
 
 use glam::{Mat3A, Vec3A};
 

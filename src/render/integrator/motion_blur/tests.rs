@@ -271,7 +271,7 @@ fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
         let path = write("bad.ron", bad);
         let err = scene::load_scene(&path).unwrap_err();
         assert!(
-            matches!(&err, SceneError::Invalid { field, .. } if field == "shot.shutter"),
+            matches!(&err, SceneError::InvalidAt { field, .. } if field == "shot.shutter"),
             "{bad}: {err}"
         );
         let text = err.to_string();

@@ -2,11 +2,11 @@
 //! need when they are evaluated ahead of their use ([`crate::render::medium::noise::Billows`]
 //! fills the lanes with the octaves and blobs of one sample).
 //!
-//! [`crate::render::medium::noise_simd`] puts the eight corners of one point in the lanes and
+//! [`crate::render::medium::noise::simd`] puts the eight corners of one point in the lanes and
 //! blends them across lanes; here each lane is a whole point, so the corners are eight passes of
 //! the same lane-wise operations and the blend is lane-wise too — no shuffles, and the hash's
 //! products and the gradients' selects serve eight points each. Every lane does the scalar
-//! noise's operations in its order ([`crate::render::medium::noise::gradient_noise_scalar`]:
+//! noise's operations in its order ([`crate::render::medium::noise::gradient::gradient_noise_scalar`]:
 //! wrapping products, bit selects, sign flips by XOR, IEEE `+ − ×` and no FMA), so the bits are
 //! the same as one point at a time (tested below).
 
@@ -39,19 +39,17 @@ pub(crate) fn gradient_noise8(x: &[f32; 8], y: &[f32; 8], z: &[f32; 8]) -> [f32;
             }
         }
     }
-    std::array::from_fn(|i| {
-        crate::render::medium::noise::gradient_noise(Vec3A::new(x[i], y[i], z[i]))
-    })
+    std::array::from_fn(|i| super::simd::gradient_noise(Vec3A::new(x[i], y[i], z[i])))
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use core::arch::x86_64::*;
 
-    use crate::render::medium::noise::HASH_AXES;
-    use crate::render::medium::noise_simd::avx2::{grad, mix};
+    use super::super::gradient::HASH_AXES;
+    use super::super::simd::avx2::{grad, mix};
 
-    /// One corner's contribution: [`crate::render::medium::noise::grad`] of the corner's hash
+    /// One corner's contribution: [`crate::render::medium::noise::gradient::grad`] of the corner's hash
     /// `hx ^ hy ^ hz` (the axes' products) and the point's offset from it (the one-point AVX2
     /// noise's hash and gradient, here over eight points).
     #[inline]
@@ -60,7 +58,7 @@ mod avx2 {
         grad(mix(_mm256_xor_si256(_mm256_xor_si256(hx, hy), hz)), x, y, z)
     }
 
-    /// `6t⁵ − 15t⁴ + 10t³` as [`crate::render::medium::noise::fade`] forms it.
+    /// `6t⁵ − 15t⁴ + 10t³` as [`crate::render::medium::noise::gradient::fade`] forms it.
     #[inline]
     #[target_feature(enable = "avx2")]
     fn fade(t: __m256) -> __m256 {
@@ -164,8 +162,8 @@ mod avx2 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::gradient::gradient_noise_scalar;
     use super::*;
-    use crate::render::medium::noise::gradient_noise_scalar;
 
     #[test]
     fn eight_lanes_have_the_scalar_noises_bits() {
@@ -212,5 +210,58 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod timing {
+    use super::super::simd::{gradient_noise, sse2};
+    use super::*;
+
+    #[test]
+    #[ignore = "timing: cargo test --release --lib noise_paths -- --ignored --nocapture"]
+    fn noise_paths() {
+        let pts: Vec<Vec3A> = (0..1_000_000)
+            .map(|i| {
+                Vec3A::new(
+                    i as f32 * 0.0137,
+                    (i % 977) as f32 * 0.31,
+                    i as f32 * -0.0071,
+                )
+            })
+            .collect();
+        let time = |name: &str, f: &dyn Fn(Vec3A) -> f32| {
+            let t = std::time::Instant::now();
+            let mut s = 0.0;
+            for _ in 0..5 {
+                for &p in &pts {
+                    s += f(p);
+                }
+            }
+            println!(
+                "{name}: {:.1} ns ({s})",
+                t.elapsed().as_secs_f64() * 1e9 / 5e6
+            );
+        };
+        time("scalar", &|p| {
+            super::super::gradient::gradient_noise_scalar(p)
+        });
+        time("sse2", &|p| sse2::gradient_noise(p));
+        time("dispatched", &|p| gradient_noise(p));
+        // Eight points a call (one per lane): the time per point.
+        let t = std::time::Instant::now();
+        let mut s = 0.0;
+        for _ in 0..5 {
+            for c in pts.chunks_exact(8) {
+                let x = std::array::from_fn(|i| c[i].x);
+                let y = std::array::from_fn(|i| c[i].y);
+                let z = std::array::from_fn(|i| c[i].z);
+                s += gradient_noise8(&x, &y, &z).iter().sum::<f32>();
+            }
+        }
+        println!(
+            "eight lanes: {:.1} ns a point ({s})",
+            t.elapsed().as_secs_f64() * 1e9 / 5e6
+        );
     }
 }

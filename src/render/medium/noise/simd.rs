@@ -1,15 +1,18 @@
-//! The SIMD versions of [`crate::render::medium::noise::gradient_noise`], the one place with `unsafe` for the
+//! The SIMD versions of [`super::gradient_noise`], the one place with `unsafe` for the
 //! noise: SSE2 (every x86-64 has it) and AVX2, chosen at run time, so a baseline build uses the
 //! wider path on a machine that has it and a farm's older machines still run.
 //!
 //! Both do the same operations in the same order per corner as the portable
-//! [`crate::render::medium::noise::gradient_noise_scalar`] — wrapping integer products, bit selects, sign flips
+//! [`super::gradient::gradient_noise_scalar`] — wrapping integer products, bit selects, sign flips
 //! by XOR, IEEE `+ − ×` on f32 and no FMA — so the bits are the same on every machine and path
 //! (the tests below compare them with the scalar noise bit for bit).
 
 use glam::Vec3A;
 
-/// Gradient noise at `p` on the widest path this machine has (x86-64: AVX2, else SSE2).
+/// Improved Perlin gradient noise at `p`: zero on the integer lattice, about `[−1, 1]`, on the
+/// widest path this machine has (x86-64: AVX2, else SSE2: the eight corners hashed and dotted
+/// several at a time, the same operations in the same order as the portable
+/// [`super::gradient::gradient_noise_scalar`], so the bits are the same on every machine).
 #[inline]
 pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
     #[cfg(target_arch = "x86_64")]
@@ -24,7 +27,7 @@ pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        crate::render::medium::noise::gradient_noise_scalar(p)
+        super::gradient::gradient_noise_scalar(p)
     }
 }
 
@@ -32,7 +35,7 @@ pub(crate) fn gradient_noise(p: Vec3A) -> f32 {
 /// and `hi` those with `di = 1`, each as `[(0,0), (1,0), (0,1), (1,1)]` in `(dj, dk)`, and `r`
 /// the point's offset in its cell. The fades `t·t·t·(t·(t·6 − 15) + 10)` of the three axes at
 /// once, then `lerp` along x, y and z — the scalar path's operations in its order, so the same
-/// bits ([`crate::render::medium::noise::fade`], [`crate::render::medium::noise::lerp`]).
+/// bits ([`crate::render::medium::noise::gradient::fade`], [`crate::render::medium::noise::gradient::lerp`]).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn blend_corners(
@@ -73,12 +76,12 @@ fn blend_corners(
 /// axis (`(i+1)·A = i·A + A` in wrapping arithmetic) and the 32-bit products of the mixing
 /// rounds from SSE2's 32×32→64 multiply.
 #[cfg(target_arch = "x86_64")]
-mod sse2 {
+pub(super) mod sse2 {
     use core::arch::x86_64::*;
 
     use glam::Vec3A;
 
-    use crate::render::medium::noise::HASH_AXES;
+    use super::super::gradient::HASH_AXES;
 
     /// Low 32 bits of the lane-wise product `a·b` (SSE4.1's `pmulld` from SSE2).
     #[inline(always)]
@@ -93,7 +96,7 @@ mod sse2 {
         }
     }
 
-    /// [`crate::render::medium::noise::mix`] lane-wise.
+    /// [`crate::render::medium::noise::gradient::mix`] lane-wise.
     #[inline(always)]
     unsafe fn mix(h: __m128i) -> __m128i {
         unsafe {
@@ -111,7 +114,7 @@ mod sse2 {
         unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
     }
 
-    /// [`crate::render::medium::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
+    /// [`crate::render::medium::noise::gradient::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
     #[inline(always)]
     unsafe fn grad(h: __m128i, x: __m128, y: __m128, z: __m128) -> __m128 {
         unsafe {
@@ -172,9 +175,9 @@ pub(super) mod avx2 {
 
     use glam::Vec3A;
 
-    use crate::render::medium::noise::HASH_AXES;
+    use super::super::gradient::HASH_AXES;
 
-    /// [`crate::render::medium::noise::mix`] lane-wise.
+    /// [`crate::render::medium::noise::gradient::mix`] lane-wise.
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(in crate::render::medium) fn mix(h: __m256i) -> __m256i {
@@ -192,7 +195,7 @@ pub(super) mod avx2 {
         _mm256_or_ps(_mm256_and_ps(mask, a), _mm256_andnot_ps(mask, b))
     }
 
-    /// [`crate::render::medium::noise::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
+    /// [`crate::render::medium::noise::gradient::grad`] lane-wise (the sign flips are the sign bit, as `-u` is).
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(in crate::render::medium) fn grad(h: __m256i, x: __m256, y: __m256, z: __m256) -> __m256 {
@@ -226,7 +229,7 @@ pub(super) mod avx2 {
             _mm_set1_ps(2_147_483_648.0),
         ));
         if inside & 0b111 != 0b111 {
-            return crate::render::medium::noise::gradient_noise_scalar(p);
+            return super::super::gradient::gradient_noise_scalar(p);
         }
         let [a, b, c] = HASH_AXES;
         let axes = _mm_setr_epi32(a as i32, b as i32, c as i32, 0);
@@ -257,8 +260,8 @@ pub(super) mod avx2 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::gradient::gradient_noise_scalar;
     use super::*;
-    use crate::render::medium::noise::gradient_noise_scalar;
 
     /// Points of every sign and size, lattice points and their neighbours (the hash's wrapping
     /// products, the floor at negative integers), and points past the 32-bit lattice (the
@@ -302,59 +305,5 @@ mod tests {
                 }
             }
         }
-    }
-}
-
-#[cfg(all(test, target_arch = "x86_64"))]
-mod timing {
-    use super::*;
-
-    #[test]
-    #[ignore = "timing: cargo test --release --lib noise_paths -- --ignored --nocapture"]
-    fn noise_paths() {
-        let pts: Vec<Vec3A> = (0..1_000_000)
-            .map(|i| {
-                Vec3A::new(
-                    i as f32 * 0.0137,
-                    (i % 977) as f32 * 0.31,
-                    i as f32 * -0.0071,
-                )
-            })
-            .collect();
-        let time = |name: &str, f: &dyn Fn(Vec3A) -> f32| {
-            let t = std::time::Instant::now();
-            let mut s = 0.0;
-            for _ in 0..5 {
-                for &p in &pts {
-                    s += f(p);
-                }
-            }
-            println!(
-                "{name}: {:.1} ns ({s})",
-                t.elapsed().as_secs_f64() * 1e9 / 5e6
-            );
-        };
-        time("scalar", &|p| {
-            crate::render::medium::noise::gradient_noise_scalar(p)
-        });
-        time("sse2", &|p| sse2::gradient_noise(p));
-        time("dispatched", &|p| gradient_noise(p));
-        // Eight points a call (one per lane): the time per point.
-        let t = std::time::Instant::now();
-        let mut s = 0.0;
-        for _ in 0..5 {
-            for c in pts.chunks_exact(8) {
-                let x = std::array::from_fn(|i| c[i].x);
-                let y = std::array::from_fn(|i| c[i].y);
-                let z = std::array::from_fn(|i| c[i].z);
-                s += crate::render::medium::noise_lanes::gradient_noise8(&x, &y, &z)
-                    .iter()
-                    .sum::<f32>();
-            }
-        }
-        println!(
-            "eight lanes: {:.1} ns a point ({s})",
-            t.elapsed().as_secs_f64() * 1e9 / 5e6
-        );
     }
 }
