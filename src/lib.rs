@@ -21,6 +21,7 @@ pub mod error_chain;
 pub mod eval;
 pub mod export;
 pub mod farm;
+pub mod file_error;
 pub mod geometry;
 pub mod hash;
 pub mod input;

@@ -8,6 +8,7 @@
 
 use std::path::Path;
 
+use nephele::file_error::FileError;
 use nephele::scene::SceneError as CoreSceneError;
 use pyo3::BoundObject;
 use pyo3::exceptions::PyException;
@@ -113,9 +114,9 @@ pub(crate) fn scene_err(e: CoreSceneError) -> PyErr {
     Python::attach(|py| {
         let msg = nephele::error_chain::message(&e);
         let (path, line, column, field) = match &e {
-            CoreSceneError::Parse {
+            CoreSceneError::File(FileError::Parse {
                 path, line, column, ..
-            } => (Some(path), Some(*line), Some(*column), None),
+            }) => (Some(path), Some(*line), Some(*column), None),
             CoreSceneError::Invalid { path, field, .. } => {
                 (Some(path), None, None, Some(field.as_str()))
             }
@@ -126,7 +127,7 @@ pub(crate) fn scene_err(e: CoreSceneError) -> PyErr {
                 field,
                 ..
             } => (Some(path), Some(*line), Some(*column), Some(field.as_str())),
-            CoreSceneError::Io { path, .. } => (Some(path), None, None, None),
+            CoreSceneError::File(FileError::Io { path, .. }) => (Some(path), None, None, None),
             CoreSceneError::MissingTarget { scene, .. }
             | CoreSceneError::Mesh { scene, .. }
             | CoreSceneError::Fit { scene, .. }

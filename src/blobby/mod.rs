@@ -25,6 +25,7 @@ use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
 use crate::decompose::Primitive;
+use crate::file_error::FileError;
 use crate::geometry::{Aabb, Ellipsoid};
 
 pub use field::BlobField;
@@ -183,11 +184,12 @@ impl BlobModel {
 /// RON text ([`model_file`]). It lives above both so that the RON file need not know the codec
 /// (the codec uses the model file's version and errors).
 pub fn load_model(path: &Path) -> Result<BlobModel, ModelError> {
-    let bytes =
-        crate::input::read(path, crate::input::Limit::Model).map_err(|source| ModelError::Io {
+    let bytes = crate::input::read(path, crate::input::Limit::Model).map_err(|source| {
+        ModelError::File(FileError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        })
+    })?;
     if codec::is_encoded(&bytes) {
         return codec::decode(path, &bytes);
     }

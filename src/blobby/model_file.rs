@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::BlobModel;
+use crate::file_error::FileError;
 
 /// Version written by this build; files with a larger version are refused.
 pub const MODEL_VERSION: u32 = 1;
@@ -14,26 +15,10 @@ pub const MODEL_VERSION: u32 = 1;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ModelError {
-    /// The file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// File concerned.
-        path: PathBuf,
-        /// Underlying error.
-        source: std::io::Error,
-    },
-    /// The RON text is malformed or does not match the model's fields.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// File concerned.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What the parser expected.
-        message: String,
-    },
+    /// The file could not be read or written, or its RON text does not parse (at its
+    /// `line:column`).
+    #[error(transparent)]
+    File(#[from] FileError),
     /// The file was written by a newer nephele.
     #[error(
         "{path}: model file version {found} is newer than this nephele supports ({supported}); upgrade nephele or refit the model"
@@ -56,14 +41,9 @@ pub enum ModelError {
     },
 }
 
-/// Turn a RON span error into a located [`ModelError::Parse`].
+/// Turn a RON span error into a located [`ModelError::File`].
 pub(crate) fn ron_error(path: &Path, e: &ron::error::SpannedError) -> ModelError {
-    ModelError::Parse {
-        path: path.to_path_buf(),
-        line: e.span.start.line,
-        column: e.span.start.col,
-        message: e.code.to_string(),
-    }
+    ModelError::File(FileError::ron(path, e))
 }
 
 /// Serialize a model to RON text.
@@ -117,10 +97,10 @@ fn validate(path: &Path, model: &BlobModel) -> Result<(), ModelError> {
 /// Write a model file atomically.
 pub fn save_model(path: &Path, model: &BlobModel) -> Result<(), ModelError> {
     crate::atomic::write_bytes_atomically(path, to_ron(model).as_bytes()).map_err(|source| {
-        ModelError::Io {
+        ModelError::File(FileError::Io {
             path: path.to_path_buf(),
             source,
-        }
+        })
     })
 }
 

@@ -21,6 +21,7 @@ pub use file::{camera, transform};
 pub use resume::{canonical, frame_files, frame_names, lock, provenance};
 pub use shot::{chunk, frames, run, stats, target, usd};
 
+use crate::file_error::FileError;
 use std::path::{Path, PathBuf};
 
 pub use file::{
@@ -34,26 +35,10 @@ pub use target::load_target;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SceneError {
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// File concerned.
-        path: PathBuf,
-        /// Underlying error.
-        source: std::io::Error,
-    },
-    /// Malformed RON, an unknown field or a wrong type.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// Scene file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What the parser expected.
-        message: String,
-    },
+    /// The scene file (or a file of the run) could not be read or written, or its text does
+    /// not parse (at its `line:column`).
+    #[error(transparent)]
+    File(#[from] FileError),
     /// A value out of range.
     #[error("{path}: {field}: {message}")]
     Invalid {
@@ -209,10 +194,10 @@ impl SceneError {
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     let text =
         crate::input::read_to_string(path, crate::input::Limit::Scene).map_err(|source| {
-            SceneError::Io {
+            SceneError::File(FileError::Io {
                 path: path.to_path_buf(),
                 source,
-            }
+            })
         })?;
     scene_from_str(path, &text)
 }
@@ -244,7 +229,7 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         let located = |p: &str, e: SceneError| match e {
             SceneError::MissingTarget { target, .. } => {
                 let (line, column) = locate(text, "from", p);
-                SceneError::Parse {
+                SceneError::File(FileError::Parse {
                     path: path.to_path_buf(),
                     line,
                     column,
@@ -252,7 +237,7 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
                         "animation.from: {} does not exist (relative paths resolve against the scene file's folder)",
                         target.display()
                     ),
-                }
+                })
             }
             other => other,
         };

@@ -12,6 +12,7 @@ use nephele::animate::Animation;
 use nephele::blobby::model_file::MODEL_VERSION;
 use nephele::blobby::{Blob, BlobModel, SourceInfo, save_model};
 use nephele::decompose::Primitive;
+use nephele::file_error::FileError;
 use nephele::geometry::Aabb;
 use nephele::hash::Fnv1a;
 use nephele::scene::{self, CameraSpec, SceneError, Target};
@@ -146,9 +147,8 @@ fn full_scene_syntax_forms_parse() {
 /// The error's text starts with `file:line:column:`.
 fn assert_located(e: &SceneError, line: usize, needle: &str) {
     let msg = e.to_string();
-    assert!(matches!(e, SceneError::Parse { .. }), "{msg}");
-    let SceneError::Parse { line: l, path, .. } = e else {
-        unreachable!()
+    let SceneError::File(FileError::Parse { line: l, path, .. }) = e else {
+        panic!("not a located parse error: {msg}")
     };
     assert_eq!(*l, line, "{msg}");
     assert!(

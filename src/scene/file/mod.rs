@@ -18,6 +18,7 @@ pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
 use self::transform::TargetTransform;
 use super::SceneError;
 use crate::animate::Animation;
+use crate::file_error::FileError;
 use crate::render::output::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
 
@@ -253,12 +254,7 @@ pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
         ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
     options
         .from_str::<SceneFile>(text)
-        .map_err(|e| SceneError::Parse {
-            path: path.to_path_buf(),
-            line: e.span.start.line,
-            column: e.span.start.col,
-            message: e.code.to_string(),
-        })
+        .map_err(|e| SceneError::File(FileError::ron(path, &e)))
 }
 
 /// Lowest frame rate a shot may have.

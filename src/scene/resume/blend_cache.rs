@@ -13,6 +13,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::animate::Plan;
+use crate::file_error::FileError;
 use crate::scene::SceneError;
 
 /// The cache file of the path with `key` in `dir`.
@@ -56,10 +57,12 @@ pub fn store(dir: &Path, plan: &Plan) -> Result<(), SceneError> {
         return Ok(());
     }
     // Floats in round-trip precision: the path read back is the path made, bit for bit.
-    let text = ron::to_string(&knots).map_err(|e| SceneError::Io {
-        path: path.clone(),
-        source: std::io::Error::other(e.to_string()),
+    let text = ron::to_string(&knots).map_err(|e| {
+        SceneError::File(FileError::Io {
+            path: path.clone(),
+            source: std::io::Error::other(e.to_string()),
+        })
     })?;
     crate::atomic::write_bytes_atomically(&path, text.as_bytes())
-        .map_err(|source| SceneError::Io { path, source })
+        .map_err(|source| SceneError::File(FileError::Io { path, source }))
 }

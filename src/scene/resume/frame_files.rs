@@ -9,6 +9,7 @@ use super::provenance::{
     self, FileKind, FrameCheck, FrameInputs, ListedFile, Manifest, WantedFile,
 };
 use crate::blobby::Blob;
+use crate::file_error::FileError;
 use crate::render::{self, RenderSettings};
 use crate::scene::shot::Shot;
 use crate::scene::{Format, SceneError};
@@ -71,7 +72,7 @@ pub(crate) fn write_frame(
     } = *out;
     let io = |path: &Path| {
         let path = path.to_path_buf();
-        move |source| SceneError::Io { path, source }
+        move |source| SceneError::File(FileError::Io { path, source })
     };
     let manifest = provenance::manifest_path(shot, frame);
     // The files this write does not touch: the wanted ones already up to date, and the other

@@ -21,6 +21,7 @@ use std::io::{Read, Write};
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 
+use crate::file_error::FileError;
 use crate::scene::SceneError;
 
 /// The extensions a frame's temporary files have before `.<token>.tmp`.
@@ -44,9 +45,11 @@ impl FrameLock {
     /// holding it.
     pub fn acquire(dir: &Path, stem: &str, scene: &Path) -> Result<FrameLock, SceneError> {
         let path = lock_path(dir, stem);
-        let io = |source| SceneError::Io {
-            path: path.clone(),
-            source,
+        let io = |source| {
+            SceneError::File(FileError::Io {
+                path: path.clone(),
+                source,
+            })
         };
         std::fs::create_dir_all(dir).map_err(io)?;
         match FrameLock::try_acquire(&path, scene) {
@@ -206,10 +209,10 @@ pub fn remove_stale_temps(dirs: &[&Path], name: &str) -> Result<usize, SceneErro
             Ok(e) => e,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
             Err(source) => {
-                return Err(SceneError::Io {
+                return Err(SceneError::File(FileError::Io {
                     path: dir.to_path_buf(),
                     source,
-                });
+                }));
             }
         };
         for entry in entries.filter_map(|e| e.ok()) {

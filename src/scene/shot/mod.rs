@@ -23,6 +23,7 @@ use super::file::camera::camera_at;
 use super::{Scene, SceneError};
 use crate::animate::{self, Plan, Timeline, blob_bounds};
 use crate::blobby::{Blob, BlobModel};
+use crate::file_error::FileError;
 use crate::geometry::Aabb;
 use crate::render::BasePlane;
 use crate::render::output::cryptomatte::{self, Mattes};
@@ -311,12 +312,14 @@ impl Shot {
     /// Check, without leaving anything behind, that the frames can be written into the shot's
     /// folder (which need not exist yet).
     pub fn check_writable(&self) -> Result<(), SceneError> {
-        crate::atomic::check_output_dir(self.dir()).map_err(|e| SceneError::Io {
-            path: e.dir,
-            source: std::io::Error::new(
-                e.source.kind(),
-                format!("the output folder is not writable: {}", e.source),
-            ),
+        crate::atomic::check_output_dir(self.dir()).map_err(|e| {
+            SceneError::File(FileError::Io {
+                path: e.dir,
+                source: std::io::Error::new(
+                    e.source.kind(),
+                    format!("the output folder is not writable: {}", e.source),
+                ),
+            })
         })
     }
 

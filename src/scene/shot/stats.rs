@@ -18,6 +18,7 @@ use crate::animate::stats::{
     ALPHA_LEVEL, Coverage, DEFAULT_CELL_FRACTION, Lattice, VisibleVolume, coverage, visible_volume,
 };
 use crate::blobby::Blob;
+use crate::file_error::FileError;
 use crate::render::Frame;
 use crate::scene::shot::Shot;
 use crate::scene::{RenderOptions, Scene, SceneError};
@@ -147,10 +148,10 @@ pub fn to_csv(stats: &[FrameStats]) -> String {
 /// Write `stats` as CSV to `path` atomically.
 pub fn write_csv(path: &Path, stats: &[FrameStats]) -> Result<(), SceneError> {
     crate::atomic::write_bytes_atomically(path, to_csv(stats).as_bytes()).map_err(|source| {
-        SceneError::Io {
+        SceneError::File(FileError::Io {
             path: path.to_path_buf(),
             source,
-        }
+        })
     })
 }
 

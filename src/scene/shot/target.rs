@@ -11,6 +11,7 @@ use glam::DVec3;
 
 use crate::blobby::BlobModel;
 use crate::blobby::model_file::MODEL_VERSION;
+use crate::file_error::FileError;
 use crate::geometry::Aabb;
 use crate::pipeline::{self, FIT_ALGORITHM_VERSION, FitConfig};
 
@@ -241,9 +242,11 @@ fn load(
                 mesh.as_bytes().to_vec()
             } else {
                 crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
-                    |source| SceneError::Io {
-                        path: PathBuf::from(mesh),
-                        source,
+                    |source| {
+                        SceneError::File(FileError::Io {
+                            path: PathBuf::from(mesh),
+                            source,
+                        })
                     },
                 )?
             };
