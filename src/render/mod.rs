@@ -77,6 +77,7 @@ pub(crate) mod counters;
 pub(crate) mod fast_exp;
 #[cfg(test)]
 mod fixture;
+pub(crate) mod frame;
 pub(crate) mod integrator;
 pub(crate) mod light;
 pub(crate) mod medium;
@@ -95,6 +96,7 @@ pub use output::cryptomatte::{IdMattes, Mattes};
 pub use output::film::{Film, Region};
 // What is rendered, and from where:
 pub use camera::{Camera, CameraRays};
+pub use frame::{Frame, Passes};
 pub use settings::{
     BasePlane, CloudMaterial, CumulusBase, InvalidField, NoiseSettings, Quality, QualityPreset,
     RenderSettings, Sky, Sun,
@@ -115,53 +117,6 @@ pub use medium::{Homogeneous, Medium, Shape};
 pub(crate) use settings::MIN_LIGHT_GRID_CELLS;
 
 use crate::blobby::Blob;
-
-/// A rendered frame: linear, premultiplied cloud radiance and coverage.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Frame {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Linear RGB radiance scattered toward the camera by the cloud (premultiplied), row-major,
-    /// top row first.
-    pub rgb: Vec<[f32; 3]>,
-    /// Coverage `1 − transmittance` per pixel.
-    pub alpha: Vec<f32>,
-    /// Transmittance-weighted mean distance from the eye along the pixel's ray (infinity where
-    /// the ray hits nothing).
-    pub depth: Vec<f32>,
-    /// The render passes, when rendered with them ([`Film::passes`]).
-    pub passes: Option<Box<Passes>>,
-    /// The ID mattes, when rendered with them ([`Film::mattes`]).
-    pub mattes: Option<Box<IdMattes>>,
-    /// The window rendered, when only a region was ([`Film::region`]); the pixels outside it
-    /// are empty (no cloud).
-    pub region: Option<Region>,
-}
-
-/// A frame's light by component, premultiplied like [`Frame::rgb`]; `sun + sky + multiple` is
-/// the frame's RGB up to rounding.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Passes {
-    /// Sunlight scattered once.
-    pub sun: Vec<[f32; 3]>,
-    /// Sky light scattered once (the sky cells, and the forward lobe straight through).
-    pub sky: Vec<[f32; 3]>,
-    /// The multiple-scattering approximation (sun and sky octaves beyond the first).
-    pub multiple: Vec<[f32; 3]>,
-}
-
-impl Passes {
-    /// Black passes of `n` pixels.
-    pub(crate) fn zeros(n: usize) -> Passes {
-        Passes {
-            sun: vec![[0.0; 3]; n],
-            sky: vec![[0.0; 3]; n],
-            multiple: vec![[0.0; 3]; n],
-        }
-    }
-}
 
 /// A frame's 0-based position in its shot: what the plan, the per-frame settings and seeds are
 /// indexed by (`k` in [`crate::scene::Shot`]). Not the frame *number*, which the files, the

@@ -22,6 +22,9 @@ use glam::{Mat3A, Vec3A};
 
 use crate::render::camera::{Frustum, Ray, ray_ellipsoid};
 
+/// No piece of the medium (where no blob's field reaches: the ID mattes' empty rank).
+pub const NO_PIECE: u32 = u32::MAX;
+
 /// A participating medium as the integrator sees it.
 ///
 /// Calling protocol per thread: [`Medium::begin_tile`] once per tile, then per ray
@@ -65,9 +68,8 @@ pub trait Medium: Sync {
     }
 
     /// Which piece of the medium dominates the extinction at `t`, the last `t` sampled (for the
-    /// ID mattes, [`crate::render::output::cryptomatte`]): for the blob cloud the index, in the frame's blob
-    /// list, of the blob whose field term is largest there; [`crate::render::output::cryptomatte::NO_MATTE`]
-    /// where none. Default: one piece, 0.
+    /// ID mattes): for the blob cloud the index, in the frame's blob list, of the blob whose
+    /// field term is largest there; [`NO_PIECE`] where none. Default: one piece, 0.
     #[inline]
     fn label(&self, _scratch: &mut Self::Scratch, _t: f32) -> u32 {
         0

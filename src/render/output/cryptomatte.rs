@@ -31,8 +31,8 @@ pub const RANKS: usize = 6;
 /// beauty, not in any matte); the [`RANKS`] largest are written.
 pub(crate) const SLOTS: usize = 16;
 
-/// No matte (an empty rank; a blob that belongs to none).
-pub const NO_MATTE: u32 = u32::MAX;
+/// No matte (an empty rank; a blob that belongs to none): the medium's [`crate::render::medium::NO_PIECE`].
+pub const NO_MATTE: u32 = crate::render::medium::NO_PIECE;
 
 /// The layer name of object mattes.
 pub(crate) const OBJECT_LAYER: &str = "CryptoObject";

@@ -40,7 +40,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::render::camera::CameraRays;
-use crate::render::{Frame, RenderSettings};
+use crate::render::frame::Frame;
+use crate::render::settings::RenderSettings;
 
 /// Write `frame` as an OpenEXR file with R, G, B, A (and Z depth) channels, atomically.
 pub fn write_exr(path: &Path, frame: &Frame) -> std::io::Result<()> {
@@ -77,7 +78,7 @@ impl FrameMetadata {
     /// The matrices of `camera` for a `width × height` image, as the renderer casts its rays
     /// ([`CameraRays`]), and the provenance strings.
     pub fn new(
-        camera: &crate::render::Camera,
+        camera: &crate::render::camera::Camera,
         width: u32,
         height: u32,
         strings: Vec<(String, String)>,
@@ -138,7 +139,7 @@ impl CameraFrame {
     /// The frame of `camera` for a `width × height` image, read off the renderer's own rays
     /// ([`CameraRays`]): the centre ray is the view direction, and the rays through the right
     /// and top edge midpoints give the right and up axes with their image-plane scales.
-    pub fn new(camera: &crate::render::Camera, width: u32, height: u32) -> CameraFrame {
+    pub fn new(camera: &crate::render::camera::Camera, width: u32, height: u32) -> CameraFrame {
         let rays = CameraRays::new(camera, width, height);
         let (w, h) = (width.max(1) as f32, height.max(1) as f32);
         let forward = glam::DVec3::from(Vec3::from(rays.forward));
@@ -207,7 +208,7 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     // The data window: the region rendered, or the whole frame.
     let window = frame
         .region
-        .unwrap_or(crate::render::Region::full(frame.width, frame.height));
+        .unwrap_or(film::Region::full(frame.width, frame.height));
     let size = (window.width() as usize, window.height() as usize);
     let pixels: Vec<usize> = (window.y0..window.y1)
         .flat_map(|y| (window.x0..window.x1).map(move |x| (y * frame.width + x) as usize))

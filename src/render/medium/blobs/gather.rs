@@ -291,7 +291,7 @@ impl Medium for BlobMedium {
     #[inline]
     fn label(&self, s: &mut BlobScratch, t: f32) -> u32 {
         let active = s.active.at(&s.hits, t);
-        let (mut best, mut label) = (0.0f32, crate::render::output::cryptomatte::NO_MATTE);
+        let (mut best, mut label) = (0.0f32, crate::render::medium::NO_PIECE);
         for h in active.iter().map(|&i| &s.hits[i as usize]) {
             let (_, u) = h.offset_and_radius2(t);
             if u < 1.0 {
