@@ -224,6 +224,20 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         Target::Model(p) => *p = resolve(p)?,
         Target::Fit { mesh, .. } => *mesh = resolve(mesh)?,
     }
+    // A tracked camera's lines are read now: every frame of the shot must have one.
+    if let file::CameraSpec::Chan(c) = &mut file.camera {
+        let full = base.join(&c.file);
+        let frames = file.shot.start_frame..=file.shot.last_frame();
+        c.load(&full, frames).map_err(|message| {
+            SceneError::Invalid {
+                path: path.to_path_buf(),
+                field: "camera.file".into(),
+                message,
+            }
+            .located(text)
+        })?;
+        c.file = full.to_string_lossy().into_owned();
+    }
     if let crate::animate::Animation::Morph(m) = &mut file.animation {
         // A `from` that cannot be read is located at its path in the scene text.
         let located = |p: &str, e: SceneError| match e {

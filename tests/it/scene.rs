@@ -754,3 +754,76 @@ fn cli_stats_writes_one_csv_row_per_frame() {
     assert_eq!(last[0], "12");
     assert_eq!(last[3], "1.00000", "the last frame is the final volume");
 }
+
+/// A Nuke `.chan` camera drives the shot's frames by frame number: its positions, its
+/// rotations in the asked order and its vertical angle of view; a frame without a line, or a bad
+/// line, is a located error naming the `.chan` file; an edited line re-renders its frame only.
+#[test]
+fn a_chan_camera_drives_the_shot_by_frame_number() {
+    use glam::Vec3;
+    let dir = temp_dir("chan");
+    let chan = dir.join("cam.chan");
+    // Frames 1001..1004 (a 1001-based shot of 4 frames at 4 fps): moving along +X, panned
+    // 90° left at 1003 (so looking down −X), the angle of view from the file or the default.
+    std::fs::write(
+        &chan,
+        "# frame tx ty tz rx ry rz vfov\n1001 0 0 4 0 0 0 30\n1002 0.5 0 4 0 0 0 30\n\
+         1003 1 0 4 0 90 0\n1004 1.5 0 4 10 0 0 40\n",
+    )
+    .unwrap();
+    let scene_text = "Scene(target: Model(\"builtin:cumulus\"),\n  shot: (width: 32, height: 18, fps: 4, \
+                      seconds: 1.0, start_frame: 1001),\n  camera: Chan((file: \"cam.chan\", fov_deg: 25.0)),\n  \
+                      output: (dir: \"out\", name: \"c\", formats: [Png]))";
+    let path = dir.join("c.ron");
+    std::fs::write(&path, scene_text).unwrap();
+    let scene = scene::load_scene(&path).unwrap();
+    let shot = scene::Shot::open(scene, &scene::RenderOptions::default()).unwrap();
+    let cam = |k: u32| shot.settings(k).unwrap().camera;
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+    assert!(close(cam(0).position, Vec3::new(0.0, 0.0, 4.0)));
+    assert!(close(cam(0).look_at - cam(0).position, Vec3::NEG_Z));
+    assert_eq!(cam(0).fov_deg, 30.0);
+    assert!(close(cam(1).position, Vec3::new(0.5, 0.0, 4.0)));
+    assert!(close(cam(2).look_at - cam(2).position, Vec3::NEG_X));
+    assert_eq!(
+        cam(2).fov_deg,
+        25.0,
+        "no eighth column: the scene's fov_deg"
+    );
+    assert_eq!(cam(3).fov_deg, 40.0);
+    // A frame without its line, and a bad line: located at `file:` in the scene, naming the
+    // .chan file and where in it.
+    std::fs::write(
+        &chan,
+        "1001 0 0 4 0 0 0\n1002 0 0 4 0 0 0\n1004 0 0 4 0 0 0\n",
+    )
+    .unwrap();
+    let e = scene::load_scene(&path).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("{}:3:17: camera.file: ", path.display())),
+        "{e}"
+    );
+    assert!(e.contains("cam.chan: no line for frame 1003"), "{e}");
+    std::fs::write(&chan, "1001 0 0 4 0 0\n").unwrap();
+    let e = scene::load_scene(&path).unwrap_err().to_string();
+    assert!(e.contains("cam.chan:1:1: 6 numbers"), "{e}");
+    // Rendered, then one line edited: only that frame is redone, for its camera.
+    let lines =
+        "1001 0 0 4 0 0 0 30\n1002 0.5 0 4 0 0 0 30\n1003 1 0 4 0 5 0\n1004 1.5 0 4 0 0 0\n";
+    std::fs::write(&chan, lines).unwrap();
+    let render = || {
+        let out = nephele()
+            .current_dir(&*dir)
+            .args(["render", "c.ron"])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{text}");
+        text
+    };
+    render();
+    std::fs::write(&chan, lines.replace("1003 1 0 4 0 5 0", "1003 1 0 4 0 6 0")).unwrap();
+    let t = render();
+    assert!(t.contains("1 frames rendered, 3 already done"), "{t}");
+    assert!(t.contains("changed: camera"), "{t}");
+}

@@ -11,6 +11,7 @@
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use super::chan::ChanCamera;
 use crate::geometry::Aabb;
 use crate::render::{Camera, InvalidField};
 
@@ -24,6 +25,9 @@ pub enum CameraSpec {
     Fixed(FixedCamera),
     /// Keyframes in seconds, smoothly interpolated (see the module doc).
     Keyframes(CameraKeyframes),
+    /// The shot's tracked camera from a Nuke `.chan` file, one line per frame
+    /// ([`super::chan`]).
+    Chan(ChanCamera),
 }
 
 impl Default for CameraSpec {
@@ -131,6 +135,15 @@ impl CameraSpec {
                 }
             }
             CameraSpec::Keyframes(_) => {}
+            CameraSpec::Chan(c) => {
+                fov(c.fov_deg)?;
+                if c.file.trim().is_empty() {
+                    return Err(InvalidField::new(
+                        "camera.file",
+                        "name the .chan file (relative to the scene file's folder)".to_string(),
+                    ));
+                }
+            }
         }
         Ok(())
     }
@@ -237,12 +250,20 @@ impl CameraKeyframes {
     }
 }
 
-/// The camera at shot fraction `u ∈ [0, 1]` (0 = first frame, 1 = last) and time `t` seconds
-/// for an image of the given `aspect` (width / height), framing `bounds` (the target's box)
+/// The camera of frame number `frame`, at shot fraction `u ∈ [0, 1]` (0 = first frame, 1 =
+/// last) and time `t` seconds, for an image of the given `aspect` (width / height), framing `bounds` (the target's box)
 /// when automatic.
-pub fn camera_at(spec: &CameraSpec, bounds: &Aabb, aspect: f32, u: f64, t: f64) -> Camera {
+pub fn camera_at(
+    spec: &CameraSpec,
+    bounds: &Aabb,
+    aspect: f32,
+    u: f64,
+    t: f64,
+    frame: u32,
+) -> Camera {
     match spec {
         CameraSpec::Keyframes(k) => k.at(t),
+        CameraSpec::Chan(c) => c.at(frame as i64),
         CameraSpec::Fixed(c) => {
             let eye = orbit(c.position, c.look_at, c.orbit_deg * u as f32);
             Camera {
@@ -296,7 +317,7 @@ mod tests {
             elevation_deg: 0.0,
             ..AutoCamera::default()
         });
-        let cam = camera_at(&spec, &b, 16.0 / 9.0, 0.0, 0.0);
+        let cam = camera_at(&spec, &b, 16.0 / 9.0, 0.0, 0.0, 1);
         assert!((cam.look_at - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6);
         // From +X, at radius / sin(fov/2).
         let r = 3f32.sqrt();
@@ -313,7 +334,7 @@ mod tests {
             orbit_deg: 180.0,
             ..AutoCamera::default()
         });
-        let cam = camera_at(&spec, &b, 16.0 / 9.0, 1.0, 1.0);
+        let cam = camera_at(&spec, &b, 16.0 / 9.0, 1.0, 1.0, 1);
         assert!((cam.position - Vec3::new(-d, 1.0, 0.0)).length() < 1e-3);
     }
 

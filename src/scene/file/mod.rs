@@ -7,6 +7,7 @@
 //! variant and takes its fields directly.
 
 pub mod camera;
+pub mod chan;
 pub mod locate;
 pub mod transform;
 

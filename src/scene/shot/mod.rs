@@ -286,7 +286,14 @@ impl Shot {
         Ok(RenderSettings {
             width: self.width,
             height: self.height,
-            camera: camera_at(&f.camera, &prep.bounds, aspect, u, k as f64 / f.shot.fps),
+            camera: camera_at(
+                &f.camera,
+                &prep.bounds,
+                aspect,
+                u,
+                k as f64 / f.shot.fps,
+                self.number(k),
+            ),
             sun: f.sun,
             sky: f.sky,
             cloud: f.cloud,
