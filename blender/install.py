@@ -7,6 +7,9 @@
 It zips blender/nephele_blender/ and runs Blender in the background to install that zip as an
 extension (Blender 4.2+: `blender --command extension install-file -r user_default -e ZIP`),
 falling back to the legacy add-on install (`bpy.ops.preferences.addon_install`) and enabling it.
+Without a Blender executable, a Python that has the `bpy` module (the `bpy` wheel: Blender as a
+Python module) installs and enables it in-process, into the same user folders
+(`BLENDER_USER_SCRIPTS` / `BLENDER_USER_CONFIG` when set).
 """
 
 import argparse
@@ -37,6 +40,23 @@ bpy.ops.wm.save_userpref()
 """
 
 
+def install_with_bpy(zpath: Path) -> int:
+    """Install and enable the add-on with this Python's `bpy` module (no Blender executable)."""
+    try:
+        import bpy  # noqa: PLC0415 (only this route needs it)
+    except ImportError:
+        print("no `blender` on PATH and no `bpy` module in this Python: pass --blender PATH, "
+              "run this script with a Python that has the bpy wheel (pip install bpy), or "
+              "install the zip from Blender's Preferences > Get Extensions > Install from Disk",
+              file=sys.stderr)
+        return 1
+    bpy.ops.preferences.addon_install(filepath=str(zpath), overwrite=True)
+    bpy.ops.preferences.addon_enable(module="nephele_blender")
+    bpy.ops.wm.save_userpref()
+    print(f"installed and enabled with the bpy module (Blender {bpy.app.version_string})")
+    return 0
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--blender", default=shutil.which("blender"), help="Blender executable")
@@ -47,9 +67,7 @@ def main() -> int:
     if args.zip_only:
         return 0
     if not args.blender:
-        print("no `blender` on PATH: pass --blender PATH, or install the zip from Blender's "
-              "Preferences > Get Extensions > Install from Disk", file=sys.stderr)
-        return 1
+        return install_with_bpy(zpath)
     ext = subprocess.run([args.blender, "--command", "extension", "install-file",
                           "-r", "user_default", "-e", str(zpath)])
     if ext.returncode == 0:

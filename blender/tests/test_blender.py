@@ -279,3 +279,29 @@ def test_addon_registers_its_operator():
         assert "OBJECT_OT_nephele_cloud" in dir(bpy.types)
     finally:
         nephele_blender.unregister()
+
+
+def test_install_py_works_with_the_bpy_wheel_alone(tmp_path):
+    """`python blender/install.py` with a Python that has the bpy wheel and no `blender`
+    executable installs and enables the add-on in Blender's user folders."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    env = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": str(tmp_path),
+        "BLENDER_USER_CONFIG": str(tmp_path / "config"),
+        "BLENDER_USER_SCRIPTS": str(tmp_path / "scripts"),
+    }
+    run = subprocess.run([sys.executable, str(root / "blender" / "install.py")], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "installed and enabled with the bpy module" in run.stdout, run.stdout
+    assert (tmp_path / "scripts" / "addons" / "nephele_blender" / "__init__.py").is_file()
+    # A later Blender session (which reads the saved preferences at start) has it enabled.
+    check = subprocess.run(
+        [sys.executable, "-c",
+         "import bpy; bpy.ops.wm.read_userpref(); "
+         "print('ENABLED', 'nephele_blender' in bpy.context.preferences.addons.keys())"],
+        env=env, capture_output=True, text=True, timeout=300)
+    assert "ENABLED True" in check.stdout, check.stdout + check.stderr
