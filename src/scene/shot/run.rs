@@ -140,7 +140,7 @@ impl Shot {
                 let waited = Instant::now();
                 if !finished {
                     let last = n + 1 == frames.len();
-                    writing = run.write(scope, request.clone(), image, checked, last)?;
+                    writing = run.write(scope, &request, image, checked, last)?;
                 }
                 run.time(start, rendered, waited);
                 let stop = run.account(frame, Some((&request, image)), start, finished, on_frame);
@@ -245,13 +245,24 @@ impl<'a> ShotRun<'a> {
     pub fn check(&mut self, request: &FrameRequest) -> Result<CheckedFrame, SceneError> {
         let shot = self.shot;
         let opts = shot.options();
-        let inputs = provenance::frame_inputs(shot, request, &self.film, self.voxel);
+        // The manifest is read under the lock: no other writer changes it until the frame's
+        // own manifest is written.
         let lock = FrameLock::acquire(
             shot.dir(),
             &frame_names::frame_stem(shot, request.frame),
             &shot.scene().path,
         )?;
-        let check = provenance::check_frame(shot, request.frame, &inputs, opts.force, opts.clean);
+        let on_disk = provenance::frame_manifest(shot, request.frame);
+        let inputs =
+            provenance::frame_inputs(shot, request, &self.film, self.voxel, on_disk.as_ref().ok());
+        let check = provenance::check_frame(
+            shot,
+            request.frame,
+            &inputs,
+            on_disk,
+            opts.force,
+            opts.clean,
+        );
         let report = &mut self.report;
         report.others.count(&check.others);
         if let FrameStatus::OutOfDate(reason) = &check.status {
@@ -285,7 +296,7 @@ impl<'a> ShotRun<'a> {
     pub fn write<'scope>(
         &self,
         scope: &'scope std::thread::Scope<'scope, '_>,
-        request: FrameRequest,
+        request: &FrameRequest,
         image: Option<&crate::render::Frame>,
         checked: CheckedFrame,
         last: bool,
@@ -293,27 +304,37 @@ impl<'a> ShotRun<'a> {
     where
         'a: 'scope,
     {
-        let (shot, voxel) = (self.shot, self.voxel);
-        let write = move |image: Option<&crate::render::Frame>, parallel: bool| {
+        let (shot, voxel, frame) = (self.shot, self.voxel, request.frame);
+        let write = move |image: Option<&crate::render::Frame>,
+                          settings: &crate::render::RenderSettings,
+                          blobs: &[crate::blobby::Blob],
+                          parallel: bool| {
             let out = frame_files::FrameOutput {
                 image,
-                settings: &request.settings,
-                blobs: &request.blobs,
+                settings,
+                blobs,
                 voxel,
                 inputs: &checked.inputs,
                 check: &checked.check,
             };
-            let written = frame_files::write_frame(shot, request.frame, &out, parallel);
+            let written = frame_files::write_frame(shot, frame, &out, parallel);
             drop(checked.lock);
             written
         };
         if last {
-            // Nothing to overlap with: no copy of the image.
-            write(image, true)?;
+            // Nothing to overlap with: no copy of the frame.
+            write(image, &request.settings, &request.blobs, true)?;
             return Ok(None);
         }
-        let image = image.cloned();
-        Ok(Some(scope.spawn(move || write(image.as_ref(), false))))
+        // What the writer needs, copied (not the shutter's time samples).
+        let (image, settings, blobs) = (
+            image.cloned(),
+            request.settings.clone(),
+            request.blobs.clone(),
+        );
+        Ok(Some(scope.spawn(move || {
+            write(image.as_ref(), &settings, &blobs, false)
+        })))
     }
 
     /// Count a rendered frame's times: its render (from `start` to `rendered`), and what
@@ -397,8 +418,10 @@ impl Shot {
             .iter()
             .map(|&frame| {
                 let request = self.frame_request(self.index(frame))?;
-                let inputs = provenance::frame_inputs(self, &request, &film, voxel);
-                let check = provenance::check_frame(self, frame, &inputs, false, false);
+                let on_disk = provenance::frame_manifest(self, frame);
+                let inputs =
+                    provenance::frame_inputs(self, &request, &film, voxel, on_disk.as_ref().ok());
+                let check = provenance::check_frame(self, frame, &inputs, on_disk, false, false);
                 Ok((frame, check.status))
             })
             .collect()

@@ -5,11 +5,11 @@ use std::collections::BTreeMap;
 
 use crate::render::{Film, RENDER_VERSION, RenderSettings};
 use crate::scene::resume::canonical::{Canonical, Encoder};
-use crate::scene::resume::frame_names::{FileKind, manifest_path};
+use crate::scene::resume::frame_names::FileKind;
 use crate::scene::shot::request::FrameRequest;
 use crate::scene::{Format, Shot};
 
-use super::manifest::read_manifest;
+use super::manifest::Manifest;
 
 /// One part of a frame's inputs, hashed on its own so that a reason can name what changed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -134,8 +134,15 @@ impl FrameInputs {
 }
 
 /// The inputs of frame `request` of `shot`, rendered into `film`; `voxel` is the density
-/// grids' voxel size.
-pub fn frame_inputs(shot: &Shot, request: &FrameRequest, film: &Film, voxel: f64) -> FrameInputs {
+/// grids' voxel size; `on_disk` the frame's manifest, when it has one (read once a frame, for
+/// this and [`super::check_frame`]).
+pub fn frame_inputs(
+    shot: &Shot,
+    request: &FrameRequest,
+    film: &Film,
+    voxel: f64,
+    on_disk: Option<&Manifest>,
+) -> FrameInputs {
     let FrameRequest {
         k, settings, blobs, ..
     } = request;
@@ -209,11 +216,8 @@ pub fn frame_inputs(shot: &Shot, request: &FrameRequest, film: &Film, voxel: f64
     // it can be told whether that VDB is still current.
     let frame = shot.number(k);
     let vdb = FileKind::Format(Format::Vdb);
-    let lists_vdb = || {
-        read_manifest(&manifest_path(shot, frame))
-            .is_ok_and(|m| m.files.iter().any(|f| f.kind == vdb.key()))
-    };
-    let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb() {
+    let lists_vdb = on_disk.is_some_and(|m| m.files.iter().any(|f| f.kind == vdb.key()));
+    let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb {
         shot.prepared().ok().map(|prep| {
             let plan = &prep.plan;
             let t = plan.timeline().time(k as usize);

@@ -142,19 +142,20 @@ pub fn wanted_files(shot: &Shot, frame: u32, inputs: &FrameInputs) -> Vec<Wanted
 }
 
 /// Check frame number `frame` of `shot` on disk against `inputs` (see the module doc); with
-/// `force` every wanted file is written; with `clean` the files the manifest lists that the run
+/// `on_disk` its manifest as read ([`frame_manifest`]); with `force` every wanted file is
+/// written; with `clean` the files the manifest lists that the run
 /// does not ask for are to be removed.
 pub fn check_frame(
     shot: &Shot,
     frame: u32,
     inputs: &FrameInputs,
+    on_disk: Result<Manifest, ManifestProblem>,
     force: bool,
     clean: bool,
 ) -> FrameCheck {
     let wanted = wanted_files(shot, frame, inputs);
     let stem = super::frame_names::frame_stem(shot, frame);
-    let manifest =
-        read_manifest(&manifest_path(shot, frame)).and_then(|m| check_names(&m, &stem).map(|()| m));
+    let manifest = on_disk.and_then(|m| check_names(&m, &stem).map(|()| m));
     let present = wanted.iter().filter(|w| is_plain_file(&w.path)).count();
     let all = |status| FrameCheck {
         frame,
@@ -268,6 +269,12 @@ pub fn check_frame(
         verified,
         others,
     }
+}
+
+/// The manifest of frame number `frame` of `shot` as it is on disk (read once a frame, for
+/// [`frame_inputs`] and [`check_frame`]).
+pub fn frame_manifest(shot: &Shot, frame: u32) -> Result<Manifest, ManifestProblem> {
+    read_manifest(&manifest_path(shot, frame))
 }
 
 /// Why a frame on disk is not up to date, gathered file by file.
