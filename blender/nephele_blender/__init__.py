@@ -1,5 +1,6 @@
 """nephele for Blender: turn the selected mesh into a nephele cloud shot and bring its VDB
-frames back as a Volume object (grids `density` and `vel`), with nephele's camera.
+frames back as a Volume object (grids `density` and `vel`). nephele renders the scene's camera
+(when the scene has one; else its own camera, imported).
 
 Object menu (3D Viewport) > "Nephele Cloud from Mesh". The work is in `core.py`.
 """
@@ -55,8 +56,17 @@ class OBJECT_OT_nephele_cloud(bpy.types.Operator):
                         "bounding-box diagonal", default=256, min=16, max=1024)
     quality: EnumProperty(name="Quality", items=[(q, q, "") for q in ("Preview", "Final", "Production")],
                           default="Preview")
-    camera: BoolProperty(name="nephele camera", description="Also import nephele's camera "
-                         "(from its EXR frames) and make it the scene camera", default=True)
+    camera_source: EnumProperty(name="Camera", default="AUTO", items=[
+        ("AUTO", "Scene camera if any", "The scene's camera when it has one, else nephele's"),
+        ("SCENE", "Scene camera", "nephele renders the scene's camera on every frame (its "
+         "animation, lens, sensor and sensor fit; written as a .chan file)"),
+        ("NEPHELE", "nephele's camera", "nephele frames the cloud with its own automatic camera"),
+    ])
+    camera: BoolProperty(name="Import nephele camera", description="With nephele's camera: "
+                         "import it (from its EXR frames) and make it the scene camera", default=True)
+    scene_frames: BoolProperty(name="Scene frame range", description="The shot is the scene's "
+                               "frames (start to end); off: Seconds from the start frame",
+                               default=True)
 
     @classmethod
     def poll(cls, context):
@@ -65,22 +75,28 @@ class OBJECT_OT_nephele_cloud(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         prefs = context.preferences.addons[__package__].preferences if __package__ in context.preferences.addons else None
+        fps = scene.render.fps / scene.render.fps_base
+        seconds = self.seconds
+        if self.scene_frames:
+            seconds = (scene.frame_end - scene.frame_start + 1) / fps
+        width, height = core.render_size(scene)
         settings = core.ShotSettings(
-            blobs=self.blobs, animation=self.animation, seconds=self.seconds,
-            fps=scene.render.fps / scene.render.fps_base, start_frame=scene.frame_start,
-            width=scene.render.resolution_x, height=scene.render.resolution_y,
+            blobs=self.blobs, animation=self.animation, seconds=seconds,
+            fps=fps, start_frame=scene.frame_start, width=width, height=height,
             shutter=self.shutter, quality=self.quality, voxels_per_diagonal=self.voxels,
-            extra_formats=["Exr"] if self.camera else [],
+            # The EXR frames: nephele's picture of the cloud from the scene camera (to composite),
+            # or where nephele's own camera is read from.
+            extra_formats=["Exr"] if self.camera or self.camera_source != "NEPHELE" else [],
         )
         try:
             volume, _, scene_path = core.make_cloud(
                 context.active_object, self.output, settings,
                 binary=prefs.binary if prefs else None, with_camera=self.camera,
-                progress=lambda line: print("nephele:", line))
+                progress=lambda line: print("nephele:", line), camera_source=self.camera_source)
         except (RuntimeError, ValueError, OSError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        scene.frame_end = scene.frame_start + max(1, round(settings.seconds * settings.fps)) - 1
+        scene.frame_end = core.shot_frames(settings)[-1]
         self.report({"INFO"}, f"{volume.name}: from {scene_path}")
         return {"FINISHED"}
 

@@ -5,6 +5,9 @@ Axes: nephele is Y-up, Blender Z-up. A Blender point (x, y, z) is written to nep
 (x, z, -y) (`to_nephele`); nephele's grids come back under an object rotated +90° about X, which
 maps nephele (x, y, z) to Blender (x, -z, y), so the cloud sits where the mesh was. Velocities
 (grid `vel`, world units per second in nephele's axes) turn with the object like the density.
+The scene's camera goes to nephele the same way (`scene_camera_chan`): its world matrix turned
+by the same axis change, written as a Nuke `.chan` file the scene file names
+(`camera: Chan((file: ...))`).
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import os
 import shutil
 import struct
 import subprocess
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -33,6 +36,13 @@ def to_blender(v: Sequence[float]) -> Vec:
 
 #: Euler XYZ rotation (radians) of the Volume object holding nephele's grids.
 VOLUME_ROTATION = (math.pi / 2, 0.0, 0.0)
+
+#: The rotation matrix of `to_nephele` (rows): nephele = AXES · Blender. The Volume's rotation
+#: (+90° about X) is its inverse, so a camera turned by it sees the cloud where Blender does.
+AXES = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0))
+
+#: The `.chan` rotation order the add-on writes (Nuke's default for cameras; Z first).
+CHAN_ROTATION_ORDER = "ZXY"
 
 
 @dataclass
@@ -252,6 +262,102 @@ def import_camera(exr_paths: Dict[int, Path], name: str = "nephele camera"):
     return obj
 
 
+# --- the Blender scene's camera as a .chan file ----------------------------------------------
+
+def render_size(scene) -> Tuple[int, int]:
+    """The scene's rendered image size in pixels (resolution × percentage)."""
+    r = scene.render
+    pct = r.resolution_percentage / 100.0
+    return max(1, int(r.resolution_x * pct)), max(1, int(r.resolution_y * pct))
+
+
+def vertical_fov_deg(cam_data, width: int, height: int, pixel_aspect: float = 1.0) -> float:
+    """The vertical angle of view (degrees) of Blender camera data `cam_data` rendering a
+    `width`×`height` image, as Blender frames it: the sensor fit says which image side the
+    sensor spans — HORIZONTAL: `sensor_width` across the width; VERTICAL: `sensor_height` across
+    the height; AUTO: `sensor_width` across the larger side (pixel aspect `x/y` included)."""
+    if cam_data.type != "PERSP":
+        kind = {"ORTHO": "orthographic", "PANO": "panoramic"}.get(cam_data.type, cam_data.type)
+        raise ValueError(f"camera {cam_data.name!r} is {kind}: nephele renders "
+                         "perspective cameras only (set its type to Perspective)")
+    fit = cam_data.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if width * pixel_aspect >= height else "VERTICAL"
+        sensor = cam_data.sensor_width
+    else:
+        sensor = cam_data.sensor_width if fit == "HORIZONTAL" else cam_data.sensor_height
+    half = 0.5 * sensor / cam_data.lens
+    if fit == "HORIZONTAL":
+        half *= height / (width * pixel_aspect)
+    return math.degrees(2.0 * math.atan(half))
+
+
+@dataclass
+class ChanLine:
+    """One frame of a `.chan` file, in nephele's axes."""
+
+    frame: int
+    translate: Vec
+    rotate_deg: Vec  # about X, Y, Z, applied in CHAN_ROTATION_ORDER
+    vfov_deg: float
+
+
+def chan_line(frame: int, matrix_world, vfov_deg: float) -> ChanLine:
+    """A Blender camera's world matrix (it looks down its local −Z, +Y up, as a `.chan`
+    camera does) in nephele's axes: rotation `AXES · R`, position `to_nephele(t)`; scale and
+    shear dropped."""
+    from mathutils import Matrix
+
+    rot = Matrix(AXES) @ matrix_world.to_3x3().normalized()
+    euler = rot.to_euler(CHAN_ROTATION_ORDER)  # mathutils: first letter applied first, as .chan
+    return ChanLine(frame, to_nephele(matrix_world.translation),
+                    tuple(math.degrees(a) for a in euler), vfov_deg)
+
+
+def write_chan(path: Path, lines: Sequence[ChanLine]) -> None:
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(f"# Blender scene camera in nephele's axes (Y-up), written by the nephele add-on;\n"
+                f"# frame tx ty tz rx ry rz vfov — degrees, rotation order {CHAN_ROTATION_ORDER}\n")
+        for c in lines:
+            nums = (*c.translate, *c.rotate_deg, c.vfov_deg)
+            f.write(f"{c.frame} " + " ".join(f"{v:.9g}" for v in nums) + "\n")
+
+
+def scene_camera_chan(scene, frames: Sequence[int], width: int, height: int) -> List[ChanLine]:
+    """The scene's camera (`scene.camera`, read again at every frame, so camera markers
+    switch it) on each of `frames`: `scene.frame_set(frame)`, its `matrix_world`, and the
+    vertical angle of view of its lens, sensor and fit for a `width`×`height` image. Raises
+    ValueError (naming the camera) for a scene without a camera, a camera object that is not a
+    camera, an orthographic or panoramic camera, a lens shift, or non-square pixels. Restores
+    the scene's current frame."""
+    r = scene.render
+    if abs(r.pixel_aspect_x - r.pixel_aspect_y) > 1e-6:
+        raise ValueError(f"pixel aspect {r.pixel_aspect_x:g}:{r.pixel_aspect_y:g}: nephele "
+                         "renders square pixels (set the pixel aspect to 1:1)")
+    current = scene.frame_current, scene.frame_subframe
+    lines = []
+    try:
+        for frame in frames:
+            scene.frame_set(frame)
+            cam = scene.camera
+            if cam is None:
+                raise ValueError(f"frame {frame}: the scene has no camera (add one, or render "
+                                 "with nephele's camera)")
+            if cam.type != "CAMERA":
+                raise ValueError(f"frame {frame}: the scene camera {cam.name!r} is a "
+                                 f"{cam.type.lower()} object, not a camera")
+            data = cam.data
+            if abs(data.shift_x) > 1e-6 or abs(data.shift_y) > 1e-6:
+                raise ValueError(f"frame {frame}: camera {cam.name!r} has a lens shift "
+                                 f"({data.shift_x:g}, {data.shift_y:g}); nephele renders "
+                                 "centred cameras only (set Shift X and Y to 0)")
+            vfov = vertical_fov_deg(data, width, height)
+            lines.append(chan_line(frame, cam.matrix_world, vfov))
+    finally:
+        scene.frame_set(current[0], subframe=current[1])
+    return lines
+
+
 # --- the Volume ----------------------------------------------------------------------------
 
 def cloud_material(name: str = "nephele cloud", albedo: float = 0.95, anisotropy: float = 0.75,
@@ -305,6 +411,15 @@ def import_volume(first_vdb: Path, start_frame: int, count: int, fps: float, shu
     scene = bpy.context.scene
     vol = bpy.data.volumes.new(name)
     vol.filepath = str(first_vdb)
+    # `velocity_grid` can only name a grid Blender has loaded: set before any load, Blender
+    # logs "Could not find grid with name vel" and empties it. A new Volume is not evaluated
+    # yet (its frame is 0), so as a sequence it would look for `<name>_0000.vdb`; as a single
+    # file it loads `first_vdb` itself. Unloaded again, the sequence then loads by frame.
+    vol.is_sequence = False
+    if not vol.grids.load():
+        raise RuntimeError(f"{first_vdb}: Blender cannot read it ({vol.grids.error_message})")
+    vol.velocity_grid = "vel"
+    vol.grids.unload()
     vol.is_sequence = count > 1
     # Blender numbers a sequence's files from 1 at `frame_start`; nephele's first file is
     # `start_frame`, shown at scene frame `start_frame`.
@@ -312,7 +427,6 @@ def import_volume(first_vdb: Path, start_frame: int, count: int, fps: float, shu
     vol.frame_offset = start_frame - 1
     vol.frame_duration = count
     vol.sequence_mode = "CLIP"
-    vol.velocity_grid = "vel"
     vol.velocity_unit = "SECOND"
     vol.velocity_scale = 1.0
     obj = bpy.data.objects.new(name, vol)
@@ -332,16 +446,47 @@ def frame_files(out_dir: Path, name: str, start: int, count: int, ext: str, padd
     return {f: out_dir / f"{name}_{f:0{padding}d}.{ext}" for f in range(start, start + count)}
 
 
+def shot_frames(settings: ShotSettings) -> List[int]:
+    """The shot's frame numbers: `start_frame` on, `round(seconds · fps)` of them (at least 1)."""
+    count = max(1, round(settings.seconds * settings.fps))
+    return list(range(settings.start_frame, settings.start_frame + count))
+
+
+#: `make_cloud`'s camera sources: the scene's camera when it has one (else nephele's), the
+#: scene's camera (an error without one), nephele's own (`ShotSettings.camera`).
+CAMERA_SOURCES = ("AUTO", "SCENE", "NEPHELE")
+
+
 def make_cloud(obj, out_dir: Path, settings: ShotSettings, binary: Optional[str] = None,
                progress: Optional[Callable[[str], None]] = None, with_camera: bool = True,
-               use_module: Optional[bool] = None):
+               use_module: Optional[bool] = None, camera_source: str = "AUTO"):
     """The whole round trip for mesh object `obj`: OBJ + scene in `out_dir`, render, import.
-    Returns `(volume_object, camera_object_or_None, scene_path)`."""
+
+    `camera_source` (CAMERA_SOURCES): with "SCENE" (and "AUTO" when the scene has a camera)
+    nephele renders the Blender scene's camera: `<name>.chan` holds it on every shot frame (see
+    `scene_camera_chan`) and the scene file says `camera: Chan((file: "<name>.chan", ...))`;
+    the scene camera stays the scene camera. With "NEPHELE" it renders `settings.camera`, and
+    `with_camera` imports that camera (from the EXR frames) and makes it the scene camera.
+    Returns `(volume_object, camera_object_or_None, scene_path)`: the camera the frames were
+    rendered from, in Blender."""
     import bpy
 
+    if camera_source not in CAMERA_SOURCES:
+        raise ValueError(f"camera_source {camera_source!r}: one of {', '.join(CAMERA_SOURCES)}")
+    scene = bpy.context.scene
+    use_scene_camera = camera_source == "SCENE" or (camera_source == "AUTO" and scene.camera is not None)
     out_dir = Path(bpy.path.abspath(str(out_dir))).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     name = bpy.path.clean_name(obj.name)
+    frames = shot_frames(settings)
+    if use_scene_camera:
+        # Read before anything is written: a camera nephele cannot render fails here.
+        lines = scene_camera_chan(scene, frames, settings.width, settings.height)
+        chan_path = out_dir / f"{name}.chan"
+        write_chan(chan_path, lines)
+        settings = replace(settings, camera=(
+            f'Chan((file: "{chan_path.name}", rotation_order: {CHAN_ROTATION_ORDER}, '
+            f"fov_deg: {lines[0].vfov_deg!r}))"))
     mesh_path = out_dir / f"{name}.obj"
     lo, hi = export_object(obj, mesh_path)
     diagonal = math.dist(lo, hi)
@@ -350,7 +495,7 @@ def make_cloud(obj, out_dir: Path, settings: ShotSettings, binary: Optional[str]
     if progress:
         progress(f"rendering {scene_path}")
     render(scene_path, binary, progress=progress, use_module=use_module)
-    count = max(1, round(settings.seconds * settings.fps))
+    count = len(frames)
     vdbs = frame_files(out_dir, name, settings.start_frame, count, "vdb")
     missing = [p for p in vdbs.values() if not p.exists()]
     if missing:
@@ -358,11 +503,13 @@ def make_cloud(obj, out_dir: Path, settings: ShotSettings, binary: Optional[str]
     volume = import_volume(vdbs[settings.start_frame], settings.start_frame, count,
                            settings.fps, settings.shutter, name=f"{name} cloud")
     camera = None
-    if with_camera and "Exr" in settings.extra_formats:
+    if use_scene_camera:
+        camera = scene.camera
+    elif with_camera and "Exr" in settings.extra_formats:
         camera = import_camera(frame_files(out_dir, name, settings.start_frame, count, "exr"),
                                name=f"{name} nephele camera")
-        bpy.context.scene.camera = camera
-        bpy.context.scene.render.resolution_x = settings.width
-        bpy.context.scene.render.resolution_y = settings.height
-        bpy.context.scene.render.resolution_percentage = 100
+        scene.camera = camera
+        scene.render.resolution_x = settings.width
+        scene.render.resolution_y = settings.height
+        scene.render.resolution_percentage = 100
     return volume, camera, scene_path

@@ -117,6 +117,37 @@ def test_volume_has_both_grids_and_the_velocity_settings(shot):
     assert scene.render.fps / scene.render.fps_base == pytest.approx(24.0)
 
 
+def test_importing_the_vdbs_logs_no_error(shot, capfd):
+    """Blender logs "Could not find grid with name vel" (and empties `velocity_grid`) when the
+    velocity grid is named before the Volume has loaded a grid; the import names it after
+    loading the first file, and the sequence still loads each frame's own file."""
+    _, _, _, out, settings = shot
+    scene = bpy.context.scene
+    # Control: the capture sees Blender's log (the message of a Volume with no file).
+    probe = bpy.data.volumes.new("probe")
+    probe.velocity_grid = "vel"
+    bpy.data.volumes.remove(probe)
+    assert "Could not find grid with name vel" in "".join(capfd.readouterr())
+    obj = core.import_volume(out / "Cone_0001.vdb", 1, 3, settings.fps, settings.shutter,
+                             name="imported again")
+    try:
+        vol = obj.data
+        assert vol.velocity_grid == "vel"
+        for frame in (2, 3, 1):
+            scene.frame_set(frame)
+            ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+            for v in (vol, ev):
+                assert v.grids.load(), v.grids.error_message
+                assert Path(v.grids.frame_filepath).name == f"Cone_{frame:04d}.vdb"
+                assert v.grids.error_message == "" and v.velocity_grid == "vel"
+                assert {g.name for g in v.grids} == {"density", "vel"}
+        log = "".join(capfd.readouterr())
+        assert "Could not find grid" not in log, log
+        assert "not found" not in log, log
+    finally:
+        bpy.data.objects.remove(obj)
+
+
 def test_cloud_sits_on_the_mesh_in_blender_axes(shot):
     obj, volume, _, _, _ = shot
     scene = bpy.context.scene
