@@ -174,7 +174,7 @@ def cycles_alpha(path, frame):
     return load_rgba(path)[..., 3]
 
 
-@pytest.mark.parametrize("frame", [START + 1, START + 2])
+@pytest.mark.parametrize("frame", FRAMES)
 def test_cycles_from_the_scene_camera_matches_nephele(camera_shot, frame, tmp_path):
     _, _, _, _, out, _ = camera_shot
     a_b = cycles_alpha(tmp_path / f"cycles_{frame}.exr", frame)
@@ -192,3 +192,31 @@ def test_cycles_from_the_scene_camera_matches_nephele(camera_shot, frame, tmp_pa
         assert a[0].max() < 0.05 and a[-1].max() < 0.05 and a[:, 0].max() < 0.05 and a[:, -1].max() < 0.05
     assert np.abs(d).max() < 1.0, d
     assert iou > 0.6, iou
+
+
+def test_the_operator_renders_the_scene_camera_over_the_scene_frames(tmp_path, monkeypatch):
+    """The menu's operator with its defaults: the scene's camera (AUTO, the scene has one) over
+    the scene's frame range (1001-based), at the scene's render size × percentage."""
+    import nephele_blender
+
+    monkeypatch.setenv("NEPHELE_BIN", nephele_bin())
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = START, START + 1
+    scene.render.resolution_x, scene.render.resolution_y = 96, 54
+    scene.render.resolution_percentage = 50
+    obj = cone(location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0))
+    cam = keyed_camera(scene, obj.location)
+    bpy.context.view_layer.objects.active = obj
+    nephele_blender.register()
+    try:
+        result = bpy.ops.object.nephele_cloud(output=str(tmp_path), blobs=12, voxels=32,
+                                              quality="Preview", shutter=0.0)
+    finally:
+        nephele_blender.unregister()
+    assert result == {"FINISHED"}
+    assert scene.camera == cam and (scene.frame_start, scene.frame_end) == (START, START + 1)
+    lines = [l.split() for l in (tmp_path / "Cone.chan").read_text().splitlines() if l[0] != "#"]
+    assert [int(l[0]) for l in lines] == [START, START + 1]
+    assert "width: 48, height: 27" in (tmp_path / "Cone.ron").read_text()
+    assert (tmp_path / "Cone_1002.exr").is_file() and "Cone cloud" in bpy.data.objects
