@@ -103,7 +103,7 @@ pub use settings::{
 };
 // The integrator on media of one's own, and what it asks of them:
 pub use camera::{Frustum, Ray};
-pub use integrator::{render_medium, render_medium_unshaded};
+pub use integrator::{CloudVelocity, MotionSource, render_medium, render_medium_unshaded};
 pub use light::grid::LightGrid;
 pub use light::phase;
 pub use light::sky_cells::{SKY_DIRECTIONS, directions as sky_directions};

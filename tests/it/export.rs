@@ -209,6 +209,97 @@ fn openvdb_reads_back_the_renderer_density() {
 
 /// Leaves scattered over several Internal-5 nodes (negative coordinates, beyond 4096) and
 /// Internal-4 slots: OpenVDB reads every value at its index.
+/// A half-float VDB (`Precision::Half`: Houdini's "Write 16-bit Floats") read by OpenVDB:
+/// both grids flagged `is_saved_as_half_float`, the same active voxels, every value within half
+/// precision of the 32-bit grid's, and the file about half the size.
+#[test]
+fn openvdb_reads_half_float_grids_within_half_precision() {
+    let (settings, blobs) = (settings(), cloud());
+    let grid = export::frame_grid(&settings, &blobs, 0.015).unwrap();
+    let field = nephele::animate::VelocityField::new(
+        &blobs
+            .iter()
+            .map(|b| Blob {
+                center: b.center - DVec3::new(0.1, 0.0, 0.05),
+                ..*b
+            })
+            .collect::<Vec<_>>(),
+        &blobs,
+        &blobs
+            .iter()
+            .map(|b| Blob {
+                center: b.center + DVec3::new(0.1, 0.0, 0.05),
+                ..*b
+            })
+            .collect::<Vec<_>>(),
+        0.25,
+    );
+    let vel = export::sample_velocity(&grid, &field);
+    let dir = temp_dir("half");
+    let [full, half] = [export::Precision::Full, export::Precision::Half].map(|p| {
+        let path = dir.join(format!("cloud_{p:?}.vdb"));
+        let grids = [
+            export::VdbGrid::fog(export::GRID_NAME, &grid).with_precision(p),
+            export::velocity_vdb_grid(&vel, 24.0).with_precision(p),
+        ];
+        export::write_vdb_grids(&path, &grids, 1).unwrap();
+        path
+    });
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len() as f64;
+    let ratio = size(&half) / size(&full);
+    eprintln!(
+        "{} active voxels: full {:.2} MB, half {:.2} MB ({ratio:.3})",
+        grid.active_count(),
+        size(&full) / 1e6,
+        size(&half) / 1e6
+    );
+    assert!((0.45..0.56).contains(&ratio), "half/full size {ratio}");
+    let Some((dh, density)) = openvdb_grid(&half, "density") else {
+        return;
+    };
+    let (vh, vel_read) = openvdb_grid(&half, "vel").expect("OpenVDB read the density");
+    for h in [&dh, &vh] {
+        assert_eq!(h["half"], true, "{h}");
+        assert_eq!(h["metadata"]["is_saved_as_half_float"], true, "{h}");
+    }
+    assert_eq!(dh["class"], "fog volume");
+    assert_eq!(vh["type"], "Vec3SGrid");
+    let (fh, _) = openvdb_grid(&full, "density").unwrap();
+    assert_eq!(fh["half"], false);
+    for key in ["voxel_size", "index_bbox", "world_bbox", "active"] {
+        assert_eq!(dh[key], fh[key], "{key}");
+    }
+    // Half precision: 11 significant bits (relative 2^-11 after rounding), subnormals below
+    // 2^-14 in steps of 2^-24.
+    let close = |got: f32, want: f32| (got - want).abs() <= want.abs() * 4.9e-4 + 3.0e-8;
+    let exact: std::collections::HashMap<[i32; 3], f32> = grid
+        .leaves
+        .iter()
+        .flat_map(|l| l.active().collect::<Vec<_>>())
+        .collect();
+    assert_eq!(density.len(), exact.len());
+    for (ijk, _, v) in &density {
+        let want = exact[ijk];
+        assert!(close(v[0], want), "{ijk:?}: {} vs {want}", v[0]);
+    }
+    let mut exact_vel = std::collections::HashMap::new();
+    for l in &vel.leaves {
+        for i in 0..512 {
+            if l.is_active(i) {
+                let o = Leaf::offset(i);
+                exact_vel.insert(std::array::from_fn(|a| l.origin[a] + o[a]), l.values[i]);
+            }
+        }
+    }
+    assert_eq!(vel_read.len(), exact_vel.len());
+    for (ijk, _, v) in &vel_read {
+        let want: [f32; 3] = exact_vel[ijk];
+        for a in 0..3 {
+            assert!(close(v[a], want[a]), "{ijk:?}: {v:?} vs {want:?}");
+        }
+    }
+}
+
 #[test]
 fn openvdb_reads_scattered_leaves_at_their_index() {
     let origins = [
@@ -413,6 +504,7 @@ fn exr_bytes_are_identical_across_encodings() {
         depth: vec![3.0; 8],
         passes: None,
         mattes: None,
+        motion: None,
         region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]

@@ -393,8 +393,13 @@ impl Canonical for Film {
             region,
             passes,
             mattes,
+            motion,
         } = self;
         e.str("Film").put(region).put(passes).put(mattes);
+        // Added later: only when asked, so a film without it keeps its hash.
+        if *motion {
+            e.str("motion vectors");
+        }
     }
 }
 

@@ -130,6 +130,7 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         depth: Vec::new(),
         passes: None,
         mattes: None,
+        motion: None,
         region: None,
     };
     for offset in &centres {
