@@ -20,6 +20,12 @@
 //! 5. Voxel data: per leaf in the same order, its value mask, the byte 6 and 512 values (`f32`,
 //!    or three `f32` each for a vector grid).
 //!
+//! Half floats ([`Precision::Half`], [`VdbGrid::with_precision`]): as OpenVDB writes a grid
+//! whose `saveFloatAsHalf` is set — the type name gets the suffix `_HalfFloat`
+//! (`Tree_float_5_4_3_HalfFloat`), the metadata `is_saved_as_half_float` (bool) is true, and
+//! the internal nodes' tile values and the leaves' values are IEEE halves (2 bytes, 6 for a
+//! vector); the root's background stays 32-bit. OpenVDB reads the values back as floats.
+//!
 //! The tree is Root → Internal-5 (32³ slots of 128-voxel Internal-4 nodes) → Internal-4 (16³
 //! slots of 8³ leaves) → leaf. A float grid's active voxels are those with a positive value; a
 //! vector grid carries its own masks (the velocity's are the density's, so a zero velocity

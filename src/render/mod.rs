@@ -12,7 +12,9 @@
 //!
 //! - **Frames of blobs**: [`FrameRenderer`] (the one frame pipeline, with the shot's reuse) and
 //!   [`render_frame`] (one frame of it, once), with [`FrameOptions`]: the shutter ([`Shutter`],
-//!   its [`TimeSample`]s) and the film ([`Film`]: a [`Region`], passes, ID [`Mattes`]). Out: a
+//!   its [`TimeSample`]s), the film ([`Film`]: a [`Region`], passes, ID [`Mattes`], motion
+//!   vectors) and the cloud's velocity for the motion vectors ([`MotionSource`], any
+//!   [`CloudVelocity`]; `march/motion.rs`). Out: a
 //!   [`Frame`] (its [`Passes`] and [`IdMattes`]) and a [`RenderReport`] ([`Reuse`],
 //!   [`BlurReport`]). [`FrameIndex`] is a frame's 0-based place in its shot.
 //! - **What is seen**: [`RenderSettings`]: [`Camera`], [`Sun`], [`Sky`], [`CloudMaterial`]

@@ -789,6 +789,76 @@ fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("'obj' is not a format"));
 }
 
+/// `output.voxel_pixels` and `output.vdb_precision`: checked with located errors, and a shot
+/// written with them has the voxel of the pixel footprint at the target's centre from its
+/// nearest camera (read back by OpenVDB, half floats flagged).
+#[test]
+fn voxel_from_the_pixel_footprint_and_half_floats_through_a_scene() {
+    use nephele::scene::{self, RenderOptions, SceneError};
+    for (bad, says) in [
+        ("voxel_pixels: 0.0", "positive number of pixels"),
+        ("voxel_pixels: -1.0", "positive number of pixels"),
+        ("voxel_pixels: inf", "positive number of pixels"),
+        ("voxel_pixels: 1.0, voxel: 0.02", "not both"),
+    ] {
+        let (_dir, path) = cloud_scene("voxel-pixels-bad", &format!("output: ({bad})"));
+        let err = scene::load_scene(&path).unwrap_err();
+        assert!(
+            matches!(&err, SceneError::InvalidAt { field, message, .. }
+                if field == "output.voxel_pixels" && message.contains(says)),
+            "{bad}: {err}"
+        );
+    }
+    let (_dir, path) = cloud_scene("precision-bad", "output: (vdb_precision: Quarter)");
+    let err = scene::load_scene(&path).unwrap_err().to_string();
+    assert!(err.contains("Quarter"), "{err}");
+    let (dir, path) = cloud_scene(
+        "voxel-pixels",
+        "output: (formats: [Vdb], voxel_pixels: 2.0, vdb_precision: Half)",
+    );
+    let out = dir.join("out");
+    let opts = RenderOptions {
+        output: Some(out.clone()),
+        ..RenderOptions::default()
+    };
+    let s = scene::load_scene(&path).unwrap();
+    let shot = scene::Shot::open(s, &opts).unwrap();
+    // Two pixels' footprint, 2·d·tan(fov/2)/height, at the target's centre, from the nearest
+    // of the shot's cameras (this one orbits at a fixed distance).
+    let bounds = shot.prepared().unwrap().bounds;
+    let centre = 0.5 * (bounds.min + bounds.max);
+    let want = (0..shot.total())
+        .map(|k| {
+            let c = shot.settings(k).unwrap().camera;
+            let d = (centre - c.position.as_dvec3()).length();
+            2.0 * 2.0 * d * (f64::from(c.fov_deg) / 2.0).to_radians().tan() / 30.0
+        })
+        .fold(f64::INFINITY, f64::min);
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "8", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let vdb = out.join("shot_0008.vdb");
+    let Some((h, voxels)) = openvdb_grid(&vdb, "density") else {
+        return;
+    };
+    let got = h["voxel_size"][0].as_f64().unwrap();
+    assert!((got - want).abs() < 1e-9 * want, "voxel {got} vs {want}");
+    assert_eq!(h["half"], true);
+    assert!(!voxels.is_empty());
+    let (vh, _) = openvdb_grid(&vdb, "vel").unwrap();
+    assert_eq!(vh["half"], true);
+    eprintln!(
+        "48×30 at 2 px a voxel: voxel {got:.5} (the default D/512 would be {:.5}), {} voxels",
+        export::voxel_size(None, &bounds),
+        voxels.len()
+    );
+}
+
 #[test]
 fn render_formats_flag_writes_the_grids() {
     let (dir, path) = cloud_scene("formats", "output: (voxel: 0.03)");

@@ -32,7 +32,9 @@
 //! (`render_film`, also motion blur's) renders the full frame's tiles that meet its window and
 //! only their pixels inside it (a region's pixels are the full frame's bits), and the march is
 //! monomorphised for what it accumulates besides the beauty — the render passes, the ID mattes'
-//! per-sample opacity by [`Medium::label`] ([`crate::render::output::cryptomatte`]) — chosen once per frame.
+//! per-sample opacity by [`Medium::label`] ([`crate::render::output::cryptomatte`]), the motion
+//! vectors' per-sample screen motion (`march/motion.rs`, from a [`MotionSource`]) — chosen once
+//! per frame.
 
 pub(crate) mod frame_renderer;
 pub(crate) mod motion_blur;
