@@ -472,8 +472,19 @@ fn motion_vectors_are_a_forward_layer_beside_an_unchanged_beauty() {
     );
     run(nephele(&dir).args(["render", "c.ron", "--frames", "12"]));
     run(nephele(&dir).args(["render", "m.ron", "--frames", "12"]));
+    // `--motion-vectors` is the same as `output.motion_vectors: true`.
+    run(nephele(&dir).args([
+        "render",
+        "c.ron",
+        "--frames",
+        "12",
+        "--motion-vectors",
+        "--output",
+        "cli",
+    ]));
     let (plain, with) = (dir.join("plain/c_0012.exr"), dir.join("motion/c_0012.exr"));
     let (a, b) = (channels(&plain), channels(&with));
+    assert_eq!(channels(&dir.join("cli/c_0012.exr")), b);
     let names: Vec<&str> = b.keys().map(|k| k.as_str()).collect();
     assert_eq!(names, ["A", "B", "G", "R", "Z", "forward.u", "forward.v"]);
     for c in ["R", "G", "B", "A", "Z"] {
