@@ -50,6 +50,7 @@ header = {
     "value_range": [vmin, vmax] if lines else [0.0, 0.0],
     "background": grid.background,
     "type": type(grid).__name__,
+    "half": bool(grid.saveFloatAsHalf),
 }
 with open(out, "w") as f:
     f.write(json.dumps(header) + "\n")

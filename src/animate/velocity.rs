@@ -148,6 +148,13 @@ impl VelocityField {
     }
 }
 
+impl crate::render::CloudVelocity for VelocityField {
+    /// [`VelocityField::velocity`]: what the motion-vector pass projects.
+    fn velocity_at(&self, x: DVec3) -> DVec3 {
+        self.velocity(x)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

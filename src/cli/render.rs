@@ -40,6 +40,11 @@ pub struct Args {
     /// the beauty), as `output.passes: true` does.
     #[arg(long)]
     pub passes: bool,
+    /// Also write the motion vectors into the EXR: layer forward (forward.u, forward.v), each
+    /// pixel's forward motion over one frame in pixels, u right and v up (Nuke's VectorBlur),
+    /// as `output.motion_vectors: true` does.
+    #[arg(long)]
+    pub motion_vectors: bool,
     /// Render only the window X0,Y0,X1,Y1 of each frame (pixels of the frame as rendered, the
     /// preview's with --preview; X1 and Y1 exclusive): an EXR with the full frame as display
     /// window and the region as data window, a full-size PNG transparent outside it. Written
@@ -85,6 +90,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = scene::load_scene(&args.scene)?;
     if !args.formats.is_empty() {
         scene.file.output.formats = args.formats.clone();
+    }
+    if args.motion_vectors {
+        scene.file.output.motion_vectors = true;
     }
     let opts = RenderOptions {
         frames: args.frames.clone(),

@@ -15,7 +15,7 @@ pub mod velocity;
 pub mod vol;
 
 pub use grid::{DensityGrid, GridError, Leaf, sample_medium};
-pub use vdb::{VdbGrid, velocity_vdb_grid, write_vdb, write_vdb_grids};
+pub use vdb::{Precision, VdbGrid, velocity_vdb_grid, write_vdb, write_vdb_grids};
 pub use velocity::{VELOCITY_GRID_NAME, VectorGrid, sample_velocity};
 pub use vol::write_vol;
 
@@ -40,6 +40,33 @@ pub const GRID_NAME: &str = "density";
 /// The voxel size for `target` bounds: `voxel` if given, else the diagonal / [`DEFAULT_VOXELS_PER_DIAGONAL`].
 pub fn voxel_size(voxel: Option<f64>, target: &Aabb) -> f64 {
     voxel.unwrap_or(target.diagonal() / DEFAULT_VOXELS_PER_DIAGONAL)
+}
+
+/// Width in world units of one pixel's footprint at `point`, seen by `camera` in an image
+/// `height` pixels tall: `2·d·tan(fov/2) / height`, `d` the distance from the eye to `point`
+/// (the camera's field of view is vertical, its pixels square).
+pub fn pixel_footprint(camera: &crate::render::Camera, height: u32, point: glam::DVec3) -> f64 {
+    let fov = f64::from(camera.fov_deg.clamp(0.1, 179.0)).to_radians();
+    let d = (point - camera.position.as_dvec3()).length();
+    2.0 * d * (0.5 * fov).tan() / f64::from(height.max(1))
+}
+
+/// The voxel size `pixels` pixels wide (`output.voxel_pixels`): `pixels` times the smallest
+/// [`pixel_footprint`] at the centre of the target's box over `cameras` (every frame's camera
+/// of the shot, so the whole shot shares one lattice and no frame's grid is coarser than it
+/// asked for), in an image `height` pixels tall. `None` without cameras.
+pub fn footprint_voxel<'a>(
+    pixels: f64,
+    cameras: impl IntoIterator<Item = &'a crate::render::Camera>,
+    height: u32,
+    target: &Aabb,
+) -> Option<f64> {
+    let centre = 0.5 * (target.min + target.max);
+    cameras
+        .into_iter()
+        .map(|c| pixel_footprint(c, height, centre))
+        .min_by(f64::total_cmp)
+        .map(|f| pixels * f)
 }
 
 /// Voxels the target's box holds at `voxel` (each side rounded up); an error message when it

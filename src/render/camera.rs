@@ -125,6 +125,22 @@ impl CameraRays {
         }
     }
 
+    /// Image position in pixels of the world point `p` (the inverse of [`CameraRays::dir`]:
+    /// `(0, 0)` the top-left corner, y down); `None` unless `p` lies in front of the eye.
+    #[inline]
+    pub fn project(&self, p: Vec3A) -> Option<glam::Vec2> {
+        let c = p - self.position;
+        let z = c.dot(self.forward);
+        if z.is_nan() || z <= 0.0 {
+            return None;
+        }
+        let (sx, sy) = (c.dot(self.right) / z, c.dot(self.up) / z);
+        Some(glam::Vec2::new(
+            (sx * self.height / (self.tan_half * self.width) + 1.0) * 0.5 * self.width,
+            (1.0 - sy / self.tan_half) * 0.5 * self.height,
+        ))
+    }
+
     /// The frustum of the pixel rectangle `[x0, x1) × [y0, y1)`.
     pub(crate) fn frustum(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Frustum {
         let (x0, y0, x1, y1) = (x0 as f32, y0 as f32, x1 as f32, y1 as f32);
@@ -188,6 +204,29 @@ mod tests {
         assert!(ray_ellipsoid(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z).is_none());
         assert!(ray_ellipsoid(Vec3A::new(0.0, 1.5, -3.0), Vec3A::Z).is_none());
         assert!(ray_ellipsoid(Vec3A::ZERO, Vec3A::ZERO).is_none());
+    }
+
+    #[test]
+    fn project_inverts_the_pixel_rays() {
+        let cam = CameraRays::new(
+            &Camera {
+                position: Vec3::new(1.0, 2.0, 3.0),
+                look_at: Vec3::new(-2.0, 0.5, -4.0),
+                up: Vec3::Y,
+                fov_deg: 40.0,
+            },
+            320,
+            180,
+        );
+        for (px, py) in [(0.5, 0.5), (160.0, 90.0), (300.25, 17.75), (12.0, 170.0)] {
+            let ray = cam.ray(px, py);
+            let p = cam.project(ray.at(7.5)).unwrap();
+            assert!(
+                (p.x - px).abs() < 1e-3 && (p.y - py).abs() < 1e-3,
+                "{p} vs {px},{py}"
+            );
+        }
+        assert_eq!(cam.project(cam.position - cam.forward), None);
     }
 
     #[test]

@@ -23,6 +23,11 @@ pub struct Frame {
     pub passes: Option<Box<Passes>>,
     /// The ID mattes, when rendered with them ([`crate::render::Film::mattes`]).
     pub mattes: Option<Box<IdMattes>>,
+    /// The motion vectors, when rendered with them ([`crate::render::Film::motion`]): each
+    /// pixel's forward motion over one frame in pixels, `[u, v]` with `u` to the right and `v`
+    /// **up**, the cloud's velocity averaged along the ray by each sample's share of the
+    /// opacity; `[0, 0]` where there is no cloud. Written as the EXR's `forward.u`, `forward.v`.
+    pub motion: Option<Vec<[f32; 2]>>,
     /// The window rendered, when only a region was ([`crate::render::Film::region`]); the pixels outside it
     /// are empty (no cloud).
     pub region: Option<Region>,

@@ -12,7 +12,9 @@
 //!
 //! - **Frames of blobs**: [`FrameRenderer`] (the one frame pipeline, with the shot's reuse) and
 //!   [`render_frame`] (one frame of it, once), with [`FrameOptions`]: the shutter ([`Shutter`],
-//!   its [`TimeSample`]s) and the film ([`Film`]: a [`Region`], passes, ID [`Mattes`]). Out: a
+//!   its [`TimeSample`]s), the film ([`Film`]: a [`Region`], passes, ID [`Mattes`], motion
+//!   vectors) and the cloud's velocity for the motion vectors ([`MotionSource`], any
+//!   [`CloudVelocity`]; `march/motion.rs`). Out: a
 //!   [`Frame`] (its [`Passes`] and [`IdMattes`]) and a [`RenderReport`] ([`Reuse`],
 //!   [`BlurReport`]). [`FrameIndex`] is a frame's 0-based place in its shot.
 //! - **What is seen**: [`RenderSettings`]: [`Camera`], [`Sun`], [`Sky`], [`CloudMaterial`]
@@ -103,7 +105,7 @@ pub use settings::{
 };
 // The integrator on media of one's own, and what it asks of them:
 pub use camera::{Frustum, Ray};
-pub use integrator::{render_medium, render_medium_unshaded};
+pub use integrator::{CloudVelocity, MotionSource, render_medium, render_medium_unshaded};
 pub use light::grid::LightGrid;
 pub use light::phase;
 pub use light::sky_cells::{SKY_DIRECTIONS, directions as sky_directions};

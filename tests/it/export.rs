@@ -209,6 +209,97 @@ fn openvdb_reads_back_the_renderer_density() {
 
 /// Leaves scattered over several Internal-5 nodes (negative coordinates, beyond 4096) and
 /// Internal-4 slots: OpenVDB reads every value at its index.
+/// A half-float VDB (`Precision::Half`: Houdini's "Write 16-bit Floats") read by OpenVDB:
+/// both grids flagged `is_saved_as_half_float`, the same active voxels, every value within half
+/// precision of the 32-bit grid's, and the file about half the size.
+#[test]
+fn openvdb_reads_half_float_grids_within_half_precision() {
+    let (settings, blobs) = (settings(), cloud());
+    let grid = export::frame_grid(&settings, &blobs, 0.015).unwrap();
+    let field = nephele::animate::VelocityField::new(
+        &blobs
+            .iter()
+            .map(|b| Blob {
+                center: b.center - DVec3::new(0.1, 0.0, 0.05),
+                ..*b
+            })
+            .collect::<Vec<_>>(),
+        &blobs,
+        &blobs
+            .iter()
+            .map(|b| Blob {
+                center: b.center + DVec3::new(0.1, 0.0, 0.05),
+                ..*b
+            })
+            .collect::<Vec<_>>(),
+        0.25,
+    );
+    let vel = export::sample_velocity(&grid, &field);
+    let dir = temp_dir("half");
+    let [full, half] = [export::Precision::Full, export::Precision::Half].map(|p| {
+        let path = dir.join(format!("cloud_{p:?}.vdb"));
+        let grids = [
+            export::VdbGrid::fog(export::GRID_NAME, &grid).with_precision(p),
+            export::velocity_vdb_grid(&vel, 24.0).with_precision(p),
+        ];
+        export::write_vdb_grids(&path, &grids, 1).unwrap();
+        path
+    });
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len() as f64;
+    let ratio = size(&half) / size(&full);
+    eprintln!(
+        "{} active voxels: full {:.2} MB, half {:.2} MB ({ratio:.3})",
+        grid.active_count(),
+        size(&full) / 1e6,
+        size(&half) / 1e6
+    );
+    assert!((0.45..0.56).contains(&ratio), "half/full size {ratio}");
+    let Some((dh, density)) = openvdb_grid(&half, "density") else {
+        return;
+    };
+    let (vh, vel_read) = openvdb_grid(&half, "vel").expect("OpenVDB read the density");
+    for h in [&dh, &vh] {
+        assert_eq!(h["half"], true, "{h}");
+        assert_eq!(h["metadata"]["is_saved_as_half_float"], true, "{h}");
+    }
+    assert_eq!(dh["class"], "fog volume");
+    assert_eq!(vh["type"], "Vec3SGrid");
+    let (fh, _) = openvdb_grid(&full, "density").unwrap();
+    assert_eq!(fh["half"], false);
+    for key in ["voxel_size", "index_bbox", "world_bbox", "active"] {
+        assert_eq!(dh[key], fh[key], "{key}");
+    }
+    // Half precision: 11 significant bits (relative 2^-11 after rounding), subnormals below
+    // 2^-14 in steps of 2^-24.
+    let close = |got: f32, want: f32| (got - want).abs() <= want.abs() * 4.9e-4 + 3.0e-8;
+    let exact: std::collections::HashMap<[i32; 3], f32> = grid
+        .leaves
+        .iter()
+        .flat_map(|l| l.active().collect::<Vec<_>>())
+        .collect();
+    assert_eq!(density.len(), exact.len());
+    for (ijk, _, v) in &density {
+        let want = exact[ijk];
+        assert!(close(v[0], want), "{ijk:?}: {} vs {want}", v[0]);
+    }
+    let mut exact_vel = std::collections::HashMap::new();
+    for l in &vel.leaves {
+        for i in 0..512 {
+            if l.is_active(i) {
+                let o = Leaf::offset(i);
+                exact_vel.insert(std::array::from_fn(|a| l.origin[a] + o[a]), l.values[i]);
+            }
+        }
+    }
+    assert_eq!(vel_read.len(), exact_vel.len());
+    for (ijk, _, v) in &vel_read {
+        let want: [f32; 3] = exact_vel[ijk];
+        for a in 0..3 {
+            assert!(close(v[a], want[a]), "{ijk:?}: {v:?} vs {want:?}");
+        }
+    }
+}
+
 #[test]
 fn openvdb_reads_scattered_leaves_at_their_index() {
     let origins = [
@@ -413,6 +504,7 @@ fn exr_bytes_are_identical_across_encodings() {
         depth: vec![3.0; 8],
         passes: None,
         mattes: None,
+        motion: None,
         region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]
@@ -695,6 +787,76 @@ fn bad_voxel_sizes_are_clear_errors_before_any_frame() {
         .unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("'obj' is not a format"));
+}
+
+/// `output.voxel_pixels` and `output.vdb_precision`: checked with located errors, and a shot
+/// written with them has the voxel of the pixel footprint at the target's centre from its
+/// nearest camera (read back by OpenVDB, half floats flagged).
+#[test]
+fn voxel_from_the_pixel_footprint_and_half_floats_through_a_scene() {
+    use nephele::scene::{self, RenderOptions, SceneError};
+    for (bad, says) in [
+        ("voxel_pixels: 0.0", "positive number of pixels"),
+        ("voxel_pixels: -1.0", "positive number of pixels"),
+        ("voxel_pixels: inf", "positive number of pixels"),
+        ("voxel_pixels: 1.0, voxel: 0.02", "not both"),
+    ] {
+        let (_dir, path) = cloud_scene("voxel-pixels-bad", &format!("output: ({bad})"));
+        let err = scene::load_scene(&path).unwrap_err();
+        assert!(
+            matches!(&err, SceneError::InvalidAt { field, message, .. }
+                if field == "output.voxel_pixels" && message.contains(says)),
+            "{bad}: {err}"
+        );
+    }
+    let (_dir, path) = cloud_scene("precision-bad", "output: (vdb_precision: Quarter)");
+    let err = scene::load_scene(&path).unwrap_err().to_string();
+    assert!(err.contains("Quarter"), "{err}");
+    let (dir, path) = cloud_scene(
+        "voxel-pixels",
+        "output: (formats: [Vdb], voxel_pixels: 2.0, vdb_precision: Half)",
+    );
+    let out = dir.join("out");
+    let opts = RenderOptions {
+        output: Some(out.clone()),
+        ..RenderOptions::default()
+    };
+    let s = scene::load_scene(&path).unwrap();
+    let shot = scene::Shot::open(s, &opts).unwrap();
+    // Two pixels' footprint, 2·d·tan(fov/2)/height, at the target's centre, from the nearest
+    // of the shot's cameras (this one orbits at a fixed distance).
+    let bounds = shot.prepared().unwrap().bounds;
+    let centre = 0.5 * (bounds.min + bounds.max);
+    let want = (0..shot.total())
+        .map(|k| {
+            let c = shot.settings(k).unwrap().camera;
+            let d = (centre - c.position.as_dvec3()).length();
+            2.0 * 2.0 * d * (f64::from(c.fov_deg) / 2.0).to_radians().tan() / 30.0
+        })
+        .fold(f64::INFINITY, f64::min);
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "8", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let vdb = out.join("shot_0008.vdb");
+    let Some((h, voxels)) = openvdb_grid(&vdb, "density") else {
+        return;
+    };
+    let got = h["voxel_size"][0].as_f64().unwrap();
+    assert!((got - want).abs() < 1e-9 * want, "voxel {got} vs {want}");
+    assert_eq!(h["half"], true);
+    assert!(!voxels.is_empty());
+    let (vh, _) = openvdb_grid(&vdb, "vel").unwrap();
+    assert_eq!(vh["half"], true);
+    eprintln!(
+        "48×30 at 2 px a voxel: voxel {got:.5} (the default D/512 would be {:.5}), {} voxels",
+        export::voxel_size(None, &bounds),
+        voxels.len()
+    );
 }
 
 #[test]

@@ -447,6 +447,80 @@ fn bad_input_is_refused_before_any_work_with_each_cause_once() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `output.motion_vectors: true`: the EXR gains `forward.u` and `forward.v` (Nuke's forward
+/// layer), the beauty keeps its bits, the vectors are 0 where there is no cloud and show the
+/// cloud moving where it is; the frame's hash moves only with the setting.
+#[test]
+fn motion_vectors_are_a_forward_layer_beside_an_unchanged_beauty() {
+    let dir = temp_dir("motion");
+    let shot = "width: 48, height: 27, fps: 24, seconds: 1.0";
+    let flying = "animation: Aggregation((hold_seconds: 0.25)), ";
+    write_scene(
+        &dir,
+        "c",
+        shot,
+        &format!("{flying}output: (dir: \"plain\", formats: [Exr])"),
+    );
+    write_scene(
+        &dir,
+        "m",
+        shot,
+        &format!(
+            "{flying}output: (dir: \"motion\", name: \"c\", formats: [Exr], \
+             motion_vectors: true)"
+        ),
+    );
+    run(nephele(&dir).args(["render", "c.ron", "--frames", "12"]));
+    run(nephele(&dir).args(["render", "m.ron", "--frames", "12"]));
+    // `--motion-vectors` is the same as `output.motion_vectors: true`.
+    run(nephele(&dir).args([
+        "render",
+        "c.ron",
+        "--frames",
+        "12",
+        "--motion-vectors",
+        "--output",
+        "cli",
+    ]));
+    let (plain, with) = (dir.join("plain/c_0012.exr"), dir.join("motion/c_0012.exr"));
+    let (a, b) = (channels(&plain), channels(&with));
+    assert_eq!(channels(&dir.join("cli/c_0012.exr")), b);
+    let names: Vec<&str> = b.keys().map(|k| k.as_str()).collect();
+    assert_eq!(names, ["A", "B", "G", "R", "Z", "forward.u", "forward.v"]);
+    for c in ["R", "G", "B", "A", "Z"] {
+        assert_eq!(a[c], b[c], "{c}: the beauty changed with motion vectors");
+    }
+    let (u, v, alpha) = (&b["forward.u"], &b["forward.v"], &b["A"]);
+    let mut moving = 0;
+    for i in 0..alpha.len() {
+        assert!(u[i].is_finite() && v[i].is_finite());
+        if alpha[i] == 0.0 {
+            assert_eq!((u[i], v[i]), (0.0, 0.0), "pixel {i} has no cloud");
+        } else if alpha[i] > 0.5 && u[i].hypot(v[i]) > 0.05 {
+            moving += 1;
+        }
+    }
+    // Frame 12 of 24: the blobs are still flying in.
+    let covered = alpha.iter().filter(|&&a| a > 0.5).count();
+    let fastest = u
+        .iter()
+        .zip(v)
+        .map(|(a, b)| a.hypot(*b))
+        .fold(0.0f32, f32::max);
+    eprintln!("{covered} pixels with alpha > 0.5, {moving} moving, fastest {fastest} px a frame");
+    assert!(moving > 20, "only {moving} covered pixels move");
+    // The plain scene's frame is current (its hash did not take the new setting); the one
+    // with vectors is not the plain one's.
+    let t = run(nephele(&dir).args(["render", "c.ron", "--frames", "12"]));
+    assert!(t.contains("0 frames rendered"), "{t}");
+    if let Some(info) = oiiotool_info(&with) {
+        assert!(
+            info.contains("channel list: R, G, B, A, Z, forward.u, forward.v"),
+            "{info}"
+        );
+    }
+}
+
 #[test]
 fn passes_sum_to_the_beauty_which_keeps_its_bits() {
     let dir = temp_dir("passes");

@@ -294,6 +294,7 @@ fn frame_renderer_reuses_without_changing_a_bit() {
         }),
         passes: true,
         mattes: None,
+        motion: false,
     };
     let mut renderer = FrameRenderer::new();
     for (settings, blobs, film, expect) in [
@@ -308,6 +309,7 @@ fn frame_renderer_reuses_without_changing_a_bit() {
         let options = FrameOptions {
             shutter: None,
             film,
+            motion: None,
         };
         let (frame, report) = renderer.render_reporting(settings, blobs, &options);
         assert_eq!(report.reuse, expect);

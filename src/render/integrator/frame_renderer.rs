@@ -33,7 +33,7 @@ use glam::Vec3A;
 
 use crate::blobby::Blob;
 use crate::render::integrator::motion_blur::{self, Blur, BlurReport, Bounded, Shutter};
-use crate::render::integrator::render_medium;
+use crate::render::integrator::{MotionSource, render_medium, render_medium_moving};
 use crate::render::light::grid::LightGrid;
 use crate::render::medium::Medium;
 use crate::render::medium::blobs::BlobMedium;
@@ -45,6 +45,7 @@ static BEAUTY: Film = Film {
     region: None,
     passes: false,
     mattes: None,
+    motion: false,
 };
 
 /// How a frame is seen besides its settings: through which shutter, into which film.
@@ -56,6 +57,9 @@ pub struct FrameOptions<'a> {
     /// What the frame is rendered into: its window, the passes and the ID mattes. Every pixel
     /// rendered has the whole frame's bits whatever it asks for.
     pub film: &'a Film,
+    /// The cloud's velocity at the frame's time and the frame rate, for the motion vectors
+    /// ([`Film::motion`]; without it they are 0).
+    pub motion: Option<MotionSource<'a>>,
 }
 
 impl Default for FrameOptions<'_> {
@@ -64,6 +68,7 @@ impl Default for FrameOptions<'_> {
         FrameOptions {
             shutter: None,
             film: &BEAUTY,
+            motion: None,
         }
     }
 }
@@ -145,6 +150,7 @@ impl FrameRenderer {
         options: &FrameOptions<'_>,
     ) -> (&Frame, RenderReport) {
         let film = options.film;
+        let motion = options.motion.as_ref();
         let shutter = options.shutter.filter(|s| !s.is_still(blobs));
         let medium = BlobMedium::new(settings, blobs);
         let mut key = settings.clone();
@@ -155,7 +161,10 @@ impl FrameRenderer {
                 .last
                 .as_ref()
                 .is_some_and(|l| !l.blurred && l.medium == medium);
+        // (Not with motion vectors: a cloud that holds still in this frame may be about to
+        // move, which its vectors show.)
         if still
+            && !film.motion
             && self
                 .last
                 .as_ref()
@@ -172,7 +181,7 @@ impl FrameRenderer {
         let (frame, grid, report) = match shutter {
             Some(shutter) => {
                 let (frame, grid, blur) =
-                    render_blurred(settings, &medium, blobs, shutter, film, previous);
+                    render_blurred(settings, &medium, blobs, shutter, film, motion, previous);
                 let report = RenderReport {
                     reuse: Reuse::Buffers,
                     blur: Some(blur),
@@ -194,7 +203,7 @@ impl FrameRenderer {
                         Reuse::Buffers,
                     ),
                 };
-                let frame = render_medium(settings, &medium, &grid, film);
+                let frame = render_medium_moving(settings, &medium, &grid, film, motion);
                 let report = RenderReport { reuse, blur: None };
                 (frame, grid, report)
             }
@@ -236,6 +245,7 @@ fn render_blurred(
     blobs: &[Blob],
     shutter: &Shutter,
     film: &Film,
+    motion: Option<&MotionSource<'_>>,
     previous: Option<Last>,
 ) -> (Frame, Option<LightGrid>, BlurReport) {
     let blur = Blur::new(settings, medium, blobs, shutter);
@@ -250,7 +260,7 @@ fn render_blurred(
     };
     let report = blur.report(lights.len());
     if blur.slices.is_empty() {
-        let frame = render_medium(settings, medium, &lights[0], film);
+        let frame = render_medium_moving(settings, medium, &lights[0], film, motion);
         return (frame, lights.into_iter().next().flatten(), report);
     }
     let frame = motion_blur::render_slices(
@@ -259,6 +269,7 @@ fn render_blurred(
         &lights,
         shutter.stratum as f32,
         film,
+        motion,
     );
     let grid = if lights.len() == 1 {
         lights.into_iter().next().flatten()

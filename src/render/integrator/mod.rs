@@ -32,7 +32,9 @@
 //! (`render_film`, also motion blur's) renders the full frame's tiles that meet its window and
 //! only their pixels inside it (a region's pixels are the full frame's bits), and the march is
 //! monomorphised for what it accumulates besides the beauty — the render passes, the ID mattes'
-//! per-sample opacity by [`Medium::label`] ([`crate::render::output::cryptomatte`]) — chosen once per frame.
+//! per-sample opacity by [`Medium::label`] ([`crate::render::output::cryptomatte`]), the motion
+//! vectors' per-sample screen motion (`march/motion.rs`, from a [`MotionSource`]) — chosen once
+//! per frame.
 
 pub(crate) mod frame_renderer;
 pub(crate) mod motion_blur;
@@ -40,7 +42,8 @@ pub(crate) mod motion_blur;
 mod march;
 mod tiles;
 
-pub(crate) use march::{MarchFn, PixelResult, PixelSum, march, shaded_march};
+pub use march::motion::{CloudVelocity, MotionSource};
+pub(crate) use march::{MarchFn, PixelResult, PixelSum, ScreenMotion, march, shaded_march};
 pub(crate) use tiles::render_film;
 
 use crate::render::Frame;
@@ -69,14 +72,25 @@ pub fn render_medium<M: Medium, L: ShadowDepths>(
     lights: &L,
     film: &Film,
 ) -> Frame {
-    render_tiles(settings, medium, lights, film, shaded_march(film))
+    render_medium_moving(settings, medium, lights, film, None)
+}
+
+/// [`render_medium`] with the motion vectors of `motion` when `film` asks for them.
+pub(crate) fn render_medium_moving<M: Medium, L: ShadowDepths>(
+    settings: &RenderSettings,
+    medium: &M,
+    lights: &L,
+    film: &Film,
+    motion: Option<&MotionSource<'_>>,
+) -> Frame {
+    render_tiles(settings, medium, lights, film, motion, shaded_march(film))
 }
 
 /// Coverage and depth only (RGB stays 0): [`render_medium`]'s march without lighting, for
 /// profiling the cost of shading (the benchmark) and for coverage tests.
 pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) -> Frame {
-    let trace: MarchFn<M, Unshadowed> = march::<M, Unshadowed, false, false, false>;
-    render_tiles(settings, medium, &Unshadowed, &Film::default(), trace)
+    let trace: MarchFn<M, Unshadowed> = march::<M, Unshadowed, false, false, false, false>;
+    render_tiles(settings, medium, &Unshadowed, &Film::default(), None, trace)
 }
 
 fn render_tiles<M: Medium, L: ShadowDepths>(
@@ -84,10 +98,14 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
     medium: &M,
     lights: &L,
     film: &Film,
+    motion: Option<&MotionSource<'_>>,
     trace: MarchFn<M, L>,
 ) -> Frame {
     let w = settings.width;
     let cam = CameraRays::new(&settings.camera, w, settings.height);
+    let screen = motion
+        .filter(|_| film.motion)
+        .map(|m| ScreenMotion::new(cam, m));
     let shading = Shading::new(settings);
     let seed = settings.seed;
     let samples = settings.quality.samples.max(1);
@@ -99,9 +117,10 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
         settings,
         film,
         &cam,
+        screen.as_ref(),
         || medium.scratch(),
         |scratch, frustum| medium.begin_tile(frustum, scratch),
-        |scratch, (x, y), coverage| {
+        |scratch, (x, y), coverage, motion| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut rng = item_rng(seed, Stream::Render, pixel);
             let mut ray = |k: u32, grid: (u32, u32)| {
@@ -115,6 +134,7 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                     jitter,
                     optical_step,
                     coverage,
+                    motion,
                 )
             };
             let mut sum = PixelSum::new();

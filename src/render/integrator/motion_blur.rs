@@ -34,7 +34,9 @@ use rand::RngExt;
 use crate::blobby::Blob;
 use crate::render::Frame;
 use crate::render::camera::{CameraRays, Ray};
-use crate::render::integrator::{PixelSum, pixel_sample, render_film, shaded_march};
+use crate::render::integrator::{
+    MotionSource, PixelSum, ScreenMotion, pixel_sample, render_film, shaded_march,
+};
 use crate::render::light::grid::LightGrid;
 use crate::render::light::shading::Shading;
 use crate::render::medium::Medium;
@@ -251,9 +253,14 @@ pub(crate) fn render_slices(
     lights: &[Option<LightGrid>],
     stratum: f32,
     film: &Film,
+    motion: Option<&MotionSource<'_>>,
 ) -> Frame {
     let w = settings.width;
     let cam = CameraRays::new(&settings.camera, w, settings.height);
+    // The vectors of the frame's time, where each stratum's samples lie.
+    let screen = motion
+        .filter(|_| film.motion)
+        .map(|m| ScreenMotion::new(cam, m));
     let shading = Shading::new(settings);
     let samples = settings.quality.samples.max(1);
     let side = (samples as f32).sqrt().ceil() as u32;
@@ -271,6 +278,7 @@ pub(crate) fn render_slices(
         settings,
         film,
         &cam,
+        screen.as_ref(),
         || Scratch {
             media: slices.iter().map(|m| m.scratch()).collect(),
             rays: Vec::new(),
@@ -280,7 +288,7 @@ pub(crate) fn render_slices(
                 m.begin_tile(frustum, s);
             }
         },
-        |scratch, (x, y), coverage| {
+        |scratch, (x, y), coverage, motion| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut rng = item_rng(settings.seed, Stream::Render, pixel);
             let mut time = item_rng(frame_seed, Stream::Shutter, pixel);
@@ -298,7 +306,17 @@ pub(crate) fn render_slices(
                 let (m, s) = (&slices[j], &mut scratch.media[j]);
                 m.set_time_offset(s, dt);
                 let lights = &lights[j.min(lights.len() - 1)];
-                let r = trace(m, lights, &shading, s, &ray, jitter, optical_step, coverage);
+                let r = trace(
+                    m,
+                    lights,
+                    &shading,
+                    s,
+                    &ray,
+                    jitter,
+                    optical_step,
+                    coverage,
+                    motion,
+                );
                 sum.add(&r);
             }
             (sum.mean(rays), rays)

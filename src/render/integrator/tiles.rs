@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use crate::render::Frame;
 use crate::render::camera::{CameraRays, Frustum};
 use crate::render::integrator::PixelResult;
+use crate::render::integrator::march::{MotionSum, ScreenMotion};
 use crate::render::output::cryptomatte::{Coverage, IdMattes, RANKS, Rank};
 use crate::render::output::film::{Film, Region};
 use crate::render::settings::RenderSettings;
@@ -27,6 +28,8 @@ struct Band<'a> {
     passes: Option<PassRows<'a>>,
     /// The ID-matte ranks, when it asks for mattes.
     ranks: Option<&'a mut [[Rank; RANKS]]>,
+    /// The motion vectors, when it asks for them.
+    motion: Option<&'a mut [[f32; 2]]>,
 }
 
 /// One band's rows of the frame's render passes ([`crate::render::Passes`]).
@@ -54,16 +57,20 @@ impl Band<'_> {
 /// Render the frame's tiles that meet `film`'s window in parallel, each row of tiles writing
 /// into its own part of the frame. Per thread `scratch()` once; per tile `begin_tile(scratch,
 /// frustum)` with the whole tile's frustum (so a region's pixels see what the full frame's
-/// do); per pixel of the window `pixel(scratch, (x, y), coverage)`, which returns the pixel and
-/// the number of rays whose matte weights it added to `coverage`. Pixels outside the window
-/// stay empty (no cloud).
+/// do); per pixel of the window `pixel(scratch, (x, y), coverage, motion)`, which returns the
+/// pixel and the number of rays whose matte weights it added to `coverage` and whose motion
+/// to `motion` (summed through `screen`; the vectors are 0 without it). Pixels outside the
+/// window stay empty (no cloud).
 pub(crate) fn render_film<S: Send>(
     settings: &RenderSettings,
     film: &Film,
     cam: &CameraRays,
+    screen: Option<&ScreenMotion<'_>>,
     scratch: impl Fn() -> S + Sync + Send,
     begin_tile: impl Fn(&mut S, &Frustum) + Sync + Send,
-    pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>) -> (PixelResult, u32) + Sync + Send,
+    pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>, &mut MotionSum<'_>) -> (PixelResult, u32)
+    + Sync
+    + Send,
 ) -> Frame {
     let (w, h) = (settings.width, settings.height);
     let window = film.window(w, h);
@@ -82,6 +89,7 @@ pub(crate) fn render_film<S: Send>(
             .mattes
             .as_ref()
             .map(|m| Box::new(IdMattes::empty(m, n))),
+        motion: film.motion.then(|| vec![[0.0; 2]; n]),
         region: film.region,
     };
     let band_px = (w * TILE) as usize;
@@ -92,6 +100,7 @@ pub(crate) fn render_film<S: Send>(
         depth,
         passes,
         mattes,
+        motion,
         ..
     } = &mut frame;
     let passes: Vec<Option<PassRows>> = match passes {
@@ -109,20 +118,27 @@ pub(crate) fn render_film<S: Send>(
         Some(m) => m.ranks.chunks_mut(band_px).map(Some).collect(),
         None => (0..bands).map(|_| None).collect(),
     };
+    let motion: Vec<Option<&mut [[f32; 2]]>> = match motion {
+        Some(m) => m.chunks_mut(band_px).map(Some).collect(),
+        None => (0..bands).map(|_| None).collect(),
+    };
     let bands: Vec<Band> = rgb
         .chunks_mut(band_px)
         .zip(alpha.chunks_mut(band_px))
         .zip(depth.chunks_mut(band_px))
-        .zip(passes.into_iter().zip(ranks))
+        .zip(passes.into_iter().zip(ranks).zip(motion))
         .enumerate()
-        .map(|(k, (((rgb, alpha), depth), (passes, ranks)))| Band {
-            y0: k as u32 * TILE,
-            rgb,
-            alpha,
-            depth,
-            passes,
-            ranks,
-        })
+        .map(
+            |(k, (((rgb, alpha), depth), ((passes, ranks), motion)))| Band {
+                y0: k as u32 * TILE,
+                rgb,
+                alpha,
+                depth,
+                passes,
+                ranks,
+                motion,
+            },
+        )
         .collect();
     let tx = w.div_ceil(TILE);
     bands
@@ -146,11 +162,15 @@ pub(crate) fn render_film<S: Send>(
                 for y in part.y0..part.y1 {
                     for x in part.x0..part.x1 {
                         let mut coverage = Coverage::new(of_blob);
-                        let (p, rays) = pixel(scratch, (x, y), &mut coverage);
+                        let mut motion = MotionSum::new(screen);
+                        let (p, rays) = pixel(scratch, (x, y), &mut coverage, &mut motion);
                         let i = ((y - y0) * w + x) as usize;
                         band.store(i, &p);
                         if let Some(r) = &mut band.ranks {
                             r[i] = coverage.ranks(rays);
+                        }
+                        if let Some(m) = &mut band.motion {
+                            m[i] = motion.vector(rays, band.alpha[i]);
                         }
                     }
                 }

@@ -113,6 +113,9 @@ pub struct Film {
     pub passes: bool,
     /// Also make these ID mattes ([`crate::render::output::cryptomatte::IdMattes`]).
     pub mattes: Option<Mattes>,
+    /// Also make the motion vectors ([`crate::render::Frame::motion`]), from the
+    /// [`crate::render::FrameOptions::motion`] source (0 without one).
+    pub motion: bool,
 }
 
 impl Film {

@@ -6,7 +6,10 @@
 //! linear, no exposure (f32 also for the ID mattes, whose ids are float bit patterns). A frame
 //! rendered with passes adds the layers `sun.R/G/B`, `sky.R/G/B`
 //! and `multiple.R/G/B` (single-part, scanline: the layout Nuke reads as layers), which sum to
-//! `R, G, B`. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
+//! `R, G, B`. A frame rendered with motion vectors ([`Frame::motion`]) adds `forward.u` and
+//! `forward.v`: each pixel's forward motion over one frame in pixels, u to the right, v up
+//! (Nuke's `forward` layer, which its `motion` layer and VectorBlur read), 0 where there is no
+//! cloud. Compositing over a background `bg` is `rgb + (1 − A)·bg`; over the
 //! scene's sky, that is exactly what the PNG shows before exposure and tone mapping.
 //!
 //! EXR metadata ([`FrameMetadata`], written by [`write_exr_with`]): the OpenEXR standard
@@ -235,6 +238,11 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
             for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
                 list.push(chan(&format!("{layer}.{name}"), convert(rgb, c)));
             }
+        }
+    }
+    if let Some(motion) = &frame.motion {
+        for (c, name) in ["forward.u", "forward.v"].into_iter().enumerate() {
+            list.push(chan(name, pixels.iter().map(|&i| motion[i][c]).collect()));
         }
     }
     if let Some(m) = &frame.mattes {

@@ -227,12 +227,24 @@ pub struct OutputSpec {
     /// Voxel size of the `Vdb` and `Vol` grids, world units (default: the target's bounding-box
     /// diagonal / 512).
     pub voxel: Option<f64>,
+    /// Voxel size of the grids in pixels instead: the voxel is this many times the width of
+    /// one pixel's footprint at the centre of the target's box, seen from the shot's nearest
+    /// camera (the smallest footprint over its frames), so a small preview writes coarse grids
+    /// ([`crate::export::footprint_voxel`]). Not with `voxel`.
+    pub voxel_pixels: Option<f64>,
+    /// How the VDB's grids store their values: `Full` 32-bit floats, or `Half` (16-bit, as
+    /// Houdini's "Write 16-bit Floats" / OpenVDB's `saveFloatAsHalf`).
+    pub vdb_precision: crate::export::Precision,
     /// Digits of the frame number in file names (default 4: `name_0001.exr`).
     pub padding: u32,
     /// The RGB space of the EXR's linear values (the PNG is always sRGB display-referred).
     pub colorspace: ColorSpace,
     /// Also write the render passes (`sun`, `sky`, `multiple` layers) into the EXR.
     pub passes: bool,
+    /// Also write the cloud's motion vectors into the EXR: the layer `forward` (`forward.u`,
+    /// `forward.v`), each pixel's forward motion over one frame in pixels, u right and v up
+    /// (what Nuke's VectorBlur reads).
+    pub motion_vectors: bool,
 }
 
 impl Default for OutputSpec {
@@ -242,9 +254,12 @@ impl Default for OutputSpec {
             name: None,
             formats: vec![Format::Exr, Format::Png],
             voxel: None,
+            voxel_pixels: None,
+            vdb_precision: crate::export::Precision::Full,
             padding: 4,
             colorspace: ColorSpace::default(),
             passes: false,
+            motion_vectors: false,
         }
     }
 }
@@ -360,6 +375,21 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
             "output.voxel",
             format!("must be a positive number of world units, got {v}"),
         ));
+    }
+    if let Some(p) = s.output.voxel_pixels {
+        if !(p.is_finite() && p > 0.0) {
+            return Err(bad(
+                "output.voxel_pixels",
+                format!("must be a positive number of pixels (e.g. 1.0), got {p}"),
+            ));
+        }
+        if s.output.voxel.is_some() {
+            return Err(bad(
+                "output.voxel_pixels",
+                "set either output.voxel (world units) or output.voxel_pixels (pixels), not both"
+                    .to_string(),
+            ));
+        }
     }
     if let Target::Fit {
         blobs,

@@ -393,8 +393,13 @@ impl Canonical for Film {
             region,
             passes,
             mattes,
+            motion,
         } = self;
         e.str("Film").put(region).put(passes).put(mattes);
+        // Added later: only when asked, so a film without it keeps its hash.
+        if *motion {
+            e.str("motion vectors");
+        }
     }
 }
 
@@ -451,5 +456,26 @@ mod tests {
         });
         assert_ne!(s.canonical_hash(), h);
         assert_eq!(base.canonical_hash(), h, "same value, same hash");
+    }
+
+    /// A film without motion vectors hashes as films did before they existed (frames on disk
+    /// stay current); one with them differs.
+    #[test]
+    fn motion_vectors_reach_the_film_hash_only_when_asked() {
+        let film = Film {
+            passes: true,
+            ..Film::default()
+        };
+        let mut e = Encoder::new();
+        e.str("Film")
+            .put(&film.region)
+            .put(&film.passes)
+            .put(&film.mattes);
+        assert_eq!(film.canonical_hash(), e.finish());
+        let moving = Film {
+            motion: true,
+            ..film.clone()
+        };
+        assert_ne!(moving.canonical_hash(), film.canonical_hash());
     }
 }

@@ -14,19 +14,33 @@ use crate::render::{self, RenderSettings};
 use crate::scene::shot::Shot;
 use crate::scene::{Format, SceneError};
 
-/// The voxel size of the shot's density grids (`output.voxel`, else the target's diagonal /
-/// 512), checked against the target's box before any frame is rendered when the scene writes
-/// a grid. (Also known when it writes none, so a grid kept from another run can be told
-/// current or not.)
+/// The voxel size of the shot's density grids (`output.voxel`; else `output.voxel_pixels`
+/// pixels' footprint at the target's centre from the shot's nearest camera,
+/// [`crate::export::footprint_voxel`]; else the target's diagonal / 512), checked against the
+/// target's box before any frame is rendered when the scene writes a grid. (Also known when it
+/// writes none, so a grid kept from another run can be told current or not.)
 pub fn grid_voxel(shot: &Shot) -> Result<f64, SceneError> {
     let scene = shot.scene();
     let bounds = shot.prepared()?.bounds;
-    let voxel = crate::export::voxel_size(scene.file.output.voxel, &bounds);
+    let (voxel, field) = match scene.file.output.voxel_pixels {
+        Some(pixels) if scene.file.output.voxel.is_none() => {
+            let cameras = (0..shot.total())
+                .map(|k| shot.settings(k).map(|s| s.camera))
+                .collect::<Result<Vec<_>, _>>()?;
+            let voxel = crate::export::footprint_voxel(pixels, &cameras, shot.size().1, &bounds)
+                .unwrap_or_else(|| crate::export::voxel_size(None, &bounds));
+            (voxel, "output.voxel_pixels")
+        }
+        _ => (
+            crate::export::voxel_size(scene.file.output.voxel, &bounds),
+            "output.voxel",
+        ),
+    };
     if scene.file.output.formats.iter().any(|f| f.is_grid()) {
         crate::export::check_voxel_budget(voxel, &bounds).map_err(|message| {
             SceneError::Invalid {
                 path: scene.path.clone(),
-                field: "output.voxel".into(),
+                field: field.into(),
                 message,
             }
         })?;
@@ -151,9 +165,12 @@ pub(crate) fn write_frame(
                 let time = plan.timeline().time(shot.index(frame) as usize);
                 let field = crate::animate::VelocityField::of_plan(plan, time);
                 let vel = crate::export::sample_velocity(g, &field);
+                let precision = scene.file.output.vdb_precision;
                 let grids = [
-                    crate::export::VdbGrid::fog(crate::export::GRID_NAME, g),
-                    crate::export::velocity_vdb_grid(&vel, scene.file.shot.fps),
+                    crate::export::VdbGrid::fog(crate::export::GRID_NAME, g)
+                        .with_precision(precision),
+                    crate::export::velocity_vdb_grid(&vel, scene.file.shot.fps)
+                        .with_precision(precision),
                 ];
                 crate::export::write_vdb_grids(path, &grids, uuid_seed).map_err(io(path))?
             }

@@ -242,6 +242,7 @@ impl Shot {
             region: self.region,
             passes: self.passes(),
             mattes,
+            motion: self.scene.file.output.motion_vectors,
         };
         Ok(self.film.get_or_init(|| film))
     }

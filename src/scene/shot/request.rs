@@ -2,6 +2,7 @@
 //! one place ([`Shot::frame_request`]) for the shot's run, the CLI's previews and the Python
 //! package alike.
 
+use crate::animate::VelocityField;
 use crate::blobby::Blob;
 use crate::render::{self, Film, Frame, FrameRenderer, RenderSettings, Shutter};
 use crate::scene::{SceneError, Shot};
@@ -19,6 +20,11 @@ pub struct FrameRequest {
     pub blobs: Vec<Blob>,
     /// The open shutter's time samples, when the shutter is open and the cloud moves in it.
     pub shutter: Option<Shutter>,
+    /// The cloud's velocity at the frame's time (the VDB's `vel`), when the shot writes motion
+    /// vectors (`output.motion_vectors`).
+    pub velocity: Option<VelocityField>,
+    /// The shot's frame rate.
+    pub fps: f64,
 }
 
 impl FrameRequest {
@@ -33,6 +39,10 @@ impl FrameRequest {
         render::FrameOptions {
             shutter: self.shutter.as_ref(),
             film,
+            motion: self.velocity.as_ref().map(|v| render::MotionSource {
+                velocity: v,
+                fps: self.fps,
+            }),
         }
     }
 }
@@ -42,12 +52,24 @@ impl Shot {
     pub fn frame_request(&self, k: u32) -> Result<FrameRequest, SceneError> {
         let settings = self.settings(k)?;
         let shutter = self.shutter(k, settings.quality.time_samples)?;
+        let file = &self.scene().file;
+        let velocity = if file.output.motion_vectors {
+            let plan = &self.prepared()?.plan;
+            Some(VelocityField::of_plan(
+                plan,
+                plan.timeline().time(k as usize),
+            ))
+        } else {
+            None
+        };
         Ok(FrameRequest {
             k,
             frame: self.number(k),
             blobs: self.blobs(k)?,
             settings,
             shutter,
+            velocity,
+            fps: file.shot.fps,
         })
     }
 }

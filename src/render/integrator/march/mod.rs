@@ -7,9 +7,11 @@
 //! saw.
 
 mod accumulate;
+pub(crate) mod motion;
 mod pixel;
 mod steps;
 
+pub(crate) use motion::{MotionSum, ScreenMotion};
 pub(crate) use pixel::{PixelResult, PixelSum};
 
 use crate::render::camera::Ray;
@@ -32,16 +34,21 @@ pub(crate) type MarchFn<M, L> = fn(
     f32,
     f32,
     &mut Coverage<'_>,
+    &mut MotionSum<'_>,
 ) -> PixelResult;
 
-/// The shaded march that accumulates what `film` asks for (passes, mattes); chosen once per
-/// frame, so the per-sample loop has no test for either.
+/// The shaded march that accumulates what `film` asks for (passes, mattes, motion vectors);
+/// chosen once per frame, so the per-sample loop has no test for any of them.
 pub(crate) fn shaded_march<M: Medium, L: ShadowDepths>(film: &Film) -> MarchFn<M, L> {
-    match (film.passes, film.mattes.is_some()) {
-        (false, false) => march::<M, L, true, false, false>,
-        (true, false) => march::<M, L, true, true, false>,
-        (false, true) => march::<M, L, true, false, true>,
-        (true, true) => march::<M, L, true, true, true>,
+    match (film.passes, film.mattes.is_some(), film.motion) {
+        (false, false, false) => march::<M, L, true, false, false, false>,
+        (true, false, false) => march::<M, L, true, true, false, false>,
+        (false, true, false) => march::<M, L, true, false, true, false>,
+        (true, true, false) => march::<M, L, true, true, true, false>,
+        (false, false, true) => march::<M, L, true, false, false, true>,
+        (true, false, true) => march::<M, L, true, true, false, true>,
+        (false, true, true) => march::<M, L, true, false, true, true>,
+        (true, true, true) => march::<M, L, true, true, true, true>,
     }
 }
 
@@ -54,7 +61,8 @@ pub(crate) fn shaded_march<M: Medium, L: ShadowDepths>(film: &Film) -> MarchFn<M
 /// With `SHADE`, the samples are lit (else coverage and depth only); with `MATTES`, each
 /// sample's share of the pixel's opacity goes to `coverage`, for the matte of the medium's
 /// piece that dominates it ([`Medium::label`]); with `PASSES`, its light by component to the
-/// result's passes. Neither of the last two changes the beauty's bits.
+/// result's passes; with `MOTION`, its screen motion weighted by its share of the opacity to
+/// `motion` ([`MotionSum`]). None of the last three changes the beauty's bits.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn march<
@@ -63,6 +71,7 @@ pub(crate) fn march<
     const SHADE: bool,
     const PASSES: bool,
     const MATTES: bool,
+    const MOTION: bool,
 >(
     medium: &M,
     lights: &L,
@@ -72,6 +81,7 @@ pub(crate) fn march<
     jitter: f32,
     optical_step: f32,
     coverage: &mut Coverage<'_>,
+    motion: &mut MotionSum<'_>,
 ) -> PixelResult {
     medium.begin_ray(ray, scratch);
     let mut steps = MarchSteps::new(medium, optical_step);
@@ -87,6 +97,9 @@ pub(crate) fn march<
             let absorbed = acc.absorbed(sigma, len);
             if MATTES {
                 coverage.add(medium.label(scratch, t), absorbed);
+            }
+            if MOTION {
+                motion.add(x, absorbed);
             }
             if SHADE {
                 acc.scatter(shading, lights, ray.dir, x, absorbed);

@@ -130,6 +130,7 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         depth: Vec::new(),
         passes: None,
         mattes: None,
+        motion: None,
         region: None,
     };
     for offset in &centres {
@@ -279,4 +280,50 @@ fn still_cloud_shutter_open_is_the_closed_frame_and_bad_shutters_are_errors() {
         assert!(text.contains("[0, 1]"), "{text}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Motion vectors with an open shutter: the blurred beauty keeps its bits, and where the
+/// blurred cloud is dense the vectors are the cloud's speed in pixels a frame (the frame's
+/// velocity where each time sample's cloud lies).
+#[test]
+fn motion_vectors_of_a_blurred_frame_leave_its_beauty_alone() {
+    use crate::render::{Film, MotionSource};
+    let s = settings(4);
+    let blobs = cloud(DVec3::ZERO);
+    let v = DVec3::new(3.0, 0.0, 0.0);
+    let shutter = shutter_of(&blobs, &vec![true; blobs.len()], v, 0.5, 4);
+    let h = 1e-3;
+    let field = crate::animate::VelocityField::new(
+        &moved(&blobs, v, -h),
+        &blobs,
+        &moved(&blobs, v, h),
+        2.0 * h,
+    );
+    let film = Film {
+        motion: true,
+        ..Film::default()
+    };
+    let options = FrameOptions {
+        shutter: Some(&shutter),
+        film: &film,
+        motion: Some(MotionSource {
+            velocity: &field,
+            fps: 24.0,
+        }),
+    };
+    let (with, _) = FrameRenderer::render_once(&s, &blobs, &options);
+    let (plain, _) = render_frame_blurred(&s, &blobs, &shutter);
+    assert!(with.rgb == plain.rgb && with.alpha == plain.alpha);
+    // 3 units a second at 24 fps, 4.5 units from a 40° camera 54 pixels tall.
+    let px = 3.0 / 24.0 * 54.0 / (2.0 * 4.5 * 20f64.to_radians().tan());
+    let motion = with.motion.expect("vectors");
+    let (mut n, mut worst) = (0, 0.0f64);
+    for (i, m) in motion.iter().enumerate() {
+        if with.alpha[i] > 0.9 {
+            n += 1;
+            worst = worst.max((m[0] as f64 - px).abs() / px);
+        }
+    }
+    eprintln!("blurred: {n} pixels, {px:.3} px a frame, worst {worst:.3} relative");
+    assert!(n > 100 && worst < 0.15, "{n} pixels, worst {worst}");
 }

@@ -201,7 +201,6 @@ pub fn frame_inputs(
         }),
     );
     hashes.insert(Component::Blobs, blobs.canonical_hash());
-    hashes.insert(Component::Film, film.canonical_hash());
     // An open shutter renders the blobs over its time samples.
     let shutter = request.shutter.as_ref();
     hashes.insert(
@@ -217,7 +216,7 @@ pub fn frame_inputs(
     let frame = shot.number(k);
     let vdb = FileKind::Format(Format::Vdb);
     let lists_vdb = on_disk.is_some_and(|m| m.files.iter().any(|f| f.kind == vdb.key()));
-    let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb {
+    let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb || film.motion {
         shot.prepared().ok().map(|prep| {
             let plan = &prep.plan;
             let t = plan.timeline().time(k as usize);
@@ -228,6 +227,17 @@ pub fn frame_inputs(
     } else {
         None
     };
+    // The motion vectors are the blobs' motions seen through the camera, per frame.
+    hashes.insert(
+        Component::Film,
+        if film.motion {
+            hash(&|e| {
+                e.put(film).put(&motions).put(&file.shot.fps);
+            })
+        } else {
+            film.canonical_hash()
+        },
+    );
     hashes.insert(
         Component::Grid,
         hash(&|e| {
@@ -236,6 +246,13 @@ pub fn frame_inputs(
                 .put(&file.shot.fps)
                 .put(&file.seed)
                 .put(&frame);
+            // The settings added since, only when set: a scene without them keeps its hash.
+            if let Some(p) = file.output.voxel_pixels {
+                e.str("voxel_pixels").put(&p);
+            }
+            if file.output.vdb_precision == crate::export::Precision::Half {
+                e.str("vdb_precision half");
+            }
         }),
     );
     let meta = header_strings(shot, frame, 0);
