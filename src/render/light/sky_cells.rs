@@ -17,6 +17,7 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A};
 
+use crate::render::light::envmap::{TABLE_COLS, TABLE_ROWS};
 use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
 use crate::render::light::sky_dome::SkyDome;
 
@@ -101,7 +102,11 @@ impl SkyLight {
             }
         }
         let per_sample = 4.0 * PI / (ny * nphi) as f32;
-        let cell_power = std::array::from_fn(|k| Vec3A::from(sum[k] * per_sample));
+        let cell_power = match dome.environment() {
+            // A map: its texels' light summed per cell, by solid angle (`light/envmap.rs`).
+            Some((env, k)) => std::array::from_fn(|c| Vec3A::from(env.cells[c] * k)),
+            None => std::array::from_fn(|k| Vec3A::from(sum[k] * per_sample)),
+        };
         let f = g * g;
         let (g_smooth, g_back) = (g / (1.0 + g), BACK_LOBE_RATIO * g);
         let weights = [(1.0 - BACK_LOBE_WEIGHT) * (1.0 - f), BACK_LOBE_WEIGHT];
@@ -190,10 +195,18 @@ impl PrefilteredSky {
         };
         // The sky itself on a finer table of equal-solid-angle texels.
         let (sr, sc) = (2 * ROWS, 2 * COLS);
+        // A map: each texel's mean over its solid angle (a sunny map's sun is not missed
+        // between point samples).
+        let env = dome.environment();
+        const _: () = assert!(2 * ROWS == TABLE_ROWS && 2 * COLS == TABLE_COLS);
         let source: Vec<(Vec3A, Vec3A)> = (0..sr * sc)
             .map(|k| {
                 let d = dir((k / sc) as f32, (k % sc) as f32, sr, sc);
-                (d, Vec3A::from(dome.radiance(d.into())))
+                let l = match &env {
+                    Some((env, scale)) => env.table[k] * *scale,
+                    None => dome.radiance(d.into()),
+                };
+                (d, Vec3A::from(l))
             })
             .collect();
         let texels = (0..ROWS * COLS)
