@@ -248,6 +248,10 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
             }
             .located(text)
         })?;
+        // `sun_from_map`: the map's sun is the scene's sun.
+        if let Some(sun) = env.map_sun() {
+            file.sun = sun;
+        }
     }
     if let crate::animate::Animation::Morph(m) = &mut file.animation {
         // A `from` that cannot be read is located at its path in the scene text.

@@ -32,6 +32,11 @@ pub fn write_exr(path: &Path, w: usize, h: usize, f: impl Fn(usize, usize) -> Ve
 /// above a dark warm ground, and a bright patch (a low sun's glow) 20° high toward +X
 /// (`u = ¼`) — a cell's worth of light from one side.
 pub fn test_map(u: f32, v: f32) -> Vec3 {
+    test_map_with(u, v, 6.0)
+}
+
+/// [`test_map`] with the patch `patch` times as bright as its colour (0: the gradient alone).
+pub fn test_map_with(u: f32, v: f32, patch: f32) -> Vec3 {
     let theta = std::f32::consts::PI * v;
     let y = theta.cos();
     let base = if y >= 0.0 {
@@ -46,7 +51,7 @@ pub fn test_map(u: f32, v: f32) -> Vec3 {
     };
     let c = d(0.25, 70.0 / 180.0);
     let angle = d(u, v).dot(c).clamp(-1.0, 1.0).acos().to_degrees();
-    let patch = if angle < 12.0 { 6.0 } else { 0.0 };
+    let patch = if angle < 12.0 { patch } else { 0.0 };
     base + Vec3::new(1.0, 0.85, 0.6) * patch
 }
 

@@ -254,7 +254,6 @@ impl EnvMap {
         let d_theta = PI / (ny - 1) as f32;
         let d_phi = 2.0 * PI / nx as f32;
         let cells = directions();
-        let (sin_a, cos_a) = rotate_deg.to_radians().sin_cos();
         /// One row's sums: cells, table bins (sum, solid angle), hemispheres (sum, solid angle).
         struct Sums {
             cells: [Vec3; SKY_DIRECTIONS],
@@ -281,8 +280,7 @@ impl EnvMap {
                     let (sp, cp) = phi.sin_cos();
                     let m = Vec3::new(st * sp, ct, -st * cp);
                     let l = self.lookup(m) * omega;
-                    // The map's direction m seen in the world: R_y(rotate) m.
-                    let d = Vec3::new(m.x * cos_a + m.z * sin_a, m.y, -m.x * sin_a + m.z * cos_a);
+                    let d = to_world(m, rotate_deg);
                     let mut best = (f32::NEG_INFINITY, 0);
                     for (c, dir) in cells.iter().enumerate() {
                         let dot = Vec3::from(*dir).dot(d);
@@ -354,11 +352,147 @@ impl EnvMap {
     }
 }
 
+/// The sun split off a map ([`EnvMap::split_sun`]), in the map's own frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapSun {
+    /// Unit direction toward the sun (power-weighted mean of its texels' directions).
+    pub to_sun: Vec3,
+    /// Its irradiance normal to that direction (`Σ (L − L_sky)·Ω` over its texels), RGB.
+    pub irradiance: Vec3,
+    /// Its texels.
+    pub texels: usize,
+}
+
+/// How far (degrees) from the brightest texel the sun's texels may lie: a sun's disc, its
+/// glare and a bright cloud edge around it, not a second bright region elsewhere.
+pub const SUN_MAX_RADIUS_DEG: f32 = 30.0;
+
+/// A texel is the sun's when its luminance exceeds this many times the map's median and a
+/// tenth of the brightest texel's, and it joins the brightest texel through such texels.
+const SUN_OVER_MEDIAN: f32 = 4.0;
+
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+impl EnvMap {
+    /// Unit direction of texel `(x, y)`'s centre in the map's frame.
+    fn texel_dir(&self, x: usize, y: usize) -> Vec3 {
+        let theta = PI * y as f32 / (self.height - 1) as f32;
+        let phi = 2.0 * PI * (x as f32 + 0.5) / self.width as f32;
+        Vec3::new(
+            theta.sin() * phi.sin(),
+            theta.cos(),
+            -theta.sin() * phi.cos(),
+        )
+    }
+
+    /// Solid angle of texel row `y` (rows are the poles' and the bands between them).
+    fn texel_solid_angle(&self, y: usize) -> f32 {
+        let d = PI / (self.height - 1) as f32;
+        let theta = y as f32 * d;
+        let (lo, hi) = ((theta - 0.5 * d).max(0.0), (theta + 0.5 * d).min(PI));
+        2.0 * PI / self.width as f32 * (lo.cos() - hi.cos())
+    }
+
+    /// The map's sun split off: the region of texels around the brightest one that are far
+    /// brighter than the map (over [`SUN_OVER_MEDIAN`] × its median luminance and a tenth of
+    /// the brightest texel, joined to it, within [`SUN_MAX_RADIUS_DEG`]) loses what exceeds the
+    /// sky around it (the mean of the texels bordering the region, per channel), and that
+    /// excess becomes a directional light. Returns the map without it and the sun, or `None`
+    /// when no texel stands out so (an overcast map).
+    pub fn split_sun(&self) -> Option<(EnvMap, MapSun)> {
+        let (w, h) = (self.width, self.height);
+        let lum: Vec<f32> = self.texels.iter().map(|&c| luminance(c)).collect();
+        let mut sorted = lum.clone();
+        let mid = sorted.len() / 2;
+        let median = *sorted.select_nth_unstable_by(mid, f32::total_cmp).1;
+        let (peak, &peak_lum) = lum.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+        let threshold = (SUN_OVER_MEDIAN * median).max(0.1 * peak_lum);
+        if !(peak_lum > threshold && peak_lum > 0.0) {
+            return None;
+        }
+        let center = self.texel_dir(peak % w, peak / w);
+        let cos_max = SUN_MAX_RADIUS_DEG.to_radians().cos();
+        // Flood fill from the peak (8 neighbours, wrapping across the left and right edges).
+        let mut in_sun = vec![false; w * h];
+        let mut border = vec![false; w * h];
+        let mut stack = vec![peak];
+        in_sun[peak] = true;
+        while let Some(k) = stack.pop() {
+            let (x, y) = ((k % w) as i64, (k / w) as i64);
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let ny = y + dy;
+                    if ny < 0 || ny >= h as i64 {
+                        continue;
+                    }
+                    let nx = (x + dx).rem_euclid(w as i64);
+                    let n = ny as usize * w + nx as usize;
+                    if in_sun[n] {
+                        continue;
+                    }
+                    let near = self.texel_dir(nx as usize, ny as usize).dot(center) >= cos_max;
+                    if lum[n] > threshold && near {
+                        in_sun[n] = true;
+                        border[n] = false;
+                        stack.push(n);
+                    } else {
+                        border[n] = true;
+                    }
+                }
+            }
+        }
+        let (mut sky, mut count) = (Vec3::ZERO, 0usize);
+        for (k, &b) in border.iter().enumerate() {
+            if b && !in_sun[k] {
+                sky += self.texels[k];
+                count += 1;
+            }
+        }
+        let sky = if count > 0 {
+            sky / count as f32
+        } else {
+            Vec3::ZERO
+        };
+        let mut texels = self.texels.clone();
+        let (mut irradiance, mut toward, mut n) = (Vec3::ZERO, Vec3::ZERO, 0);
+        for (k, t) in texels.iter_mut().enumerate() {
+            if !in_sun[k] {
+                continue;
+            }
+            let rest = t.min(sky);
+            let excess = (*t - rest) * self.texel_solid_angle(k / w);
+            irradiance += excess;
+            toward += self.texel_dir(k % w, k / w) * luminance(excess);
+            *t = rest;
+            n += 1;
+        }
+        let to_sun = toward.try_normalize()?;
+        let rest = EnvMap::from_texels(w, h, texels).ok()?;
+        Some((
+            rest,
+            MapSun {
+                to_sun,
+                irradiance,
+                texels: n,
+            },
+        ))
+    }
+}
+
 /// The world direction `d` in the frame of a map turned by `rotate_deg` about +Y:
 /// `R_y(−rotate) d`.
-pub(crate) fn to_map(d: Vec3, rotate_deg: f32) -> Vec3 {
+pub fn to_map(d: Vec3, rotate_deg: f32) -> Vec3 {
     let (s, c) = rotate_deg.to_radians().sin_cos();
     Vec3::new(d.x * c - d.z * s, d.y, d.x * s + d.z * c)
+}
+
+/// The map's direction `m` in the world, the map turned by `rotate_deg` about +Y:
+/// `R_y(rotate) m`.
+pub fn to_world(m: Vec3, rotate_deg: f32) -> Vec3 {
+    let (s, c) = rotate_deg.to_radians().sin_cos();
+    Vec3::new(m.x * c + m.z * s, m.y, -m.x * s + m.z * c)
 }
 
 #[cfg(test)]
@@ -428,6 +562,37 @@ mod tests {
         };
         assert_eq!(Vec3::from(dirs[best(&m.integrals(0.0))]), Vec3::X);
         assert_eq!(Vec3::from(dirs[best(&m.integrals(90.0))]), Vec3::NEG_Z);
+    }
+
+    #[test]
+    fn a_bright_patch_splits_off_as_a_sun_with_its_power_and_direction() {
+        // A grey sky with a 10-texel-wide bright patch around +X on the equator.
+        let w = 128;
+        let base = Vec3::new(0.2, 0.3, 0.5);
+        let m = map(w, |x, y| {
+            let patch = (28..36).contains(&x) && (28..36).contains(&y);
+            base + if patch { Vec3::splat(50.0) } else { Vec3::ZERO }
+        });
+        let (rest, sun) = m.split_sun().expect("a sun");
+        assert_eq!(sun.texels, 64);
+        // The sun's power plus the rest's is the whole map's (the rest keeps the sky's level).
+        let total = |m: &EnvMap| m.integrals(0.0).cells.iter().copied().sum::<Vec3>();
+        let (all, left) = (total(&m), total(&rest));
+        let err = ((left + sun.irradiance - all) / all).abs().max_element();
+        assert!(err < 0.01, "{all} vs {left} + {}", sun.irradiance);
+        assert!(
+            rest.texels()
+                .iter()
+                .all(|t| (*t - base).abs().max_element() < 1e-6)
+        );
+        // Toward the patch's centre: column 32 (u = ¼, +X), row 31.5 of 63 (the equator).
+        assert!(sun.to_sun.dot(Vec3::X) > 0.999, "{}", sun.to_sun);
+        // A map without a bright region has no sun.
+        assert!(
+            map(16, |x, _| base * (1.0 + x as f32 / 16.0))
+                .split_sun()
+                .is_none()
+        );
     }
 
     #[test]

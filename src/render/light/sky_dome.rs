@@ -66,6 +66,9 @@ pub enum SkyDome {
     Environment {
         /// The map (`None`: not read, a black sky).
         map: Option<Arc<EnvMap>>,
+        /// What lights the cloud through the sky cells: the map, or the map without the sun
+        /// split off it (`sun_from_map`).
+        light: Option<Arc<EnvMap>>,
         /// Degrees it is turned about +Y (right-handed).
         rotate_deg: f32,
         /// Scale of its radiance.
@@ -81,6 +84,10 @@ impl SkyDome {
             &Sky::Uniform { color } => SkyDome::Uniform { color },
             Sky::Environment(env) => SkyDome::Environment {
                 map: env.map.clone(),
+                light: match &env.split {
+                    Some((rest, _)) => Some(Arc::clone(rest)),
+                    None => env.map.clone(),
+                },
                 rotate_deg: env.rotate_deg,
                 intensity: env.intensity,
             },
@@ -133,6 +140,7 @@ impl SkyDome {
                 map,
                 rotate_deg,
                 intensity,
+                ..
             } => map.as_ref().map_or(Vec3::ZERO, |m| {
                 m.lookup(to_map(dir, *rotate_deg)) * *intensity
             }),
@@ -200,10 +208,11 @@ impl SkyDome {
     pub(crate) fn environment(&self) -> Option<(Arc<EnvIntegrals>, f32)> {
         match self {
             SkyDome::Environment {
-                map: Some(map),
+                light: Some(light),
                 rotate_deg,
                 intensity,
-            } => Some((map.integrals(*rotate_deg), *intensity)),
+                ..
+            } => Some((light.integrals(*rotate_deg), *intensity)),
             _ => None,
         }
     }

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use crate::render::camera::Camera;
-use crate::render::light::envmap::EnvMap;
+use crate::render::light::envmap::{EnvMap, MapSun, to_world};
 use serde::{Deserialize, Serialize};
 
 /// The sun: a directional light, given by a direction or by its position in the sky.
@@ -109,10 +109,18 @@ pub struct Environment {
     pub rotate_deg: f32,
     /// Scale of the map's radiance.
     pub intensity: f32,
+    /// Split the map's brightest region off as the sun ([`EnvMap::split_sun`]): it replaces
+    /// the scene's `sun` (direction and irradiance from the map; none when no region stands
+    /// out), and the sky cells light with the rest. The background still shows the whole map.
+    pub sun_from_map: bool,
     /// The map, read when the scene is loaded (not written in scene files; `None` renders a
     /// black sky).
     #[serde(skip)]
     pub map: Option<Arc<EnvMap>>,
+    /// With `sun_from_map`: the map without its sun (what the sky cells light with) and the
+    /// sun, in the map's frame (`None` when no region stands out as a sun).
+    #[serde(skip)]
+    pub split: Option<(Arc<EnvMap>, MapSun)>,
 }
 
 impl Default for Environment {
@@ -121,7 +129,9 @@ impl Default for Environment {
             file: String::new(),
             rotate_deg: 0.0,
             intensity: 1.0,
+            sun_from_map: false,
             map: None,
+            split: None,
         }
     }
 }
@@ -129,12 +139,19 @@ impl Default for Environment {
 impl Environment {
     /// The EXR at `path` as the sky, turned by `rotate_deg` and scaled by `intensity`; the
     /// error names the file and says what is wrong.
-    pub fn open(path: &Path, rotate_deg: f32, intensity: f32) -> Result<Environment, String> {
+    pub fn open(
+        path: &Path,
+        rotate_deg: f32,
+        intensity: f32,
+        sun_from_map: bool,
+    ) -> Result<Environment, String> {
         let mut env = Environment {
             file: path.to_string_lossy().into_owned(),
             rotate_deg,
             intensity,
+            sun_from_map,
             map: None,
+            split: None,
         };
         env.load(Path::new(""))?;
         Ok(env)
@@ -145,9 +162,41 @@ impl Environment {
     pub fn load(&mut self, base: &Path) -> Result<(), String> {
         let full = base.join(&self.file);
         let map = EnvMap::read_exr(&full).map_err(|e| format!("{}: {e}", full.display()))?;
+        self.split = if self.sun_from_map {
+            map.split_sun().map(|(rest, sun)| (Arc::new(rest), sun))
+        } else {
+            None
+        };
         self.map = Some(Arc::new(map));
         self.file = full.to_string_lossy().into_owned();
         Ok(())
+    }
+
+    /// With `sun_from_map`, the sun the map holds, turned and scaled as the map is (intensity 0
+    /// when it holds none); `None` without `sun_from_map`.
+    pub fn map_sun(&self) -> Option<Sun> {
+        if !self.sun_from_map {
+            return None;
+        }
+        let (dir, irradiance) = match &self.split {
+            Some((_, sun)) => (
+                to_world(sun.to_sun, self.rotate_deg),
+                sun.irradiance * self.intensity,
+            ),
+            None => (Vec3::Y, Vec3::ZERO),
+        };
+        let intensity = irradiance.max_element().max(0.0);
+        Some(Sun {
+            direction: -dir,
+            elevation_deg: None,
+            azimuth_deg: 0.0,
+            color: if intensity > 0.0 {
+                irradiance / intensity
+            } else {
+                Vec3::ONE
+            },
+            intensity,
+        })
     }
 }
 
