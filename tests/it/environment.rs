@@ -206,3 +206,36 @@ fn an_edited_map_rerenders_the_frames() {
     assert!(t.contains("2 frames rendered, 0 already done"), "{t}");
     assert!(t.contains("changed: sun and sky"), "{t}");
 }
+
+/// `sun_from_map: true`: the scene's sun is the map's bright patch (toward it, turned with the
+/// map), and the map it leaves lights the cells; a map without a bright region has no sun.
+#[test]
+fn sun_from_map_replaces_the_scene_sun_with_the_maps() {
+    let dir = temp_dir("sun");
+    let (w, h) = (128, 64);
+    write_exr(&dir.join("plate.exr"), w, h, |x, y| {
+        test_map((x as f32 + 0.5) / w as f32, y as f32 / (h - 1) as f32)
+    });
+    let path = scene_with(
+        &dir,
+        "Environment((file: \"plate.exr\", rotate_deg: 90.0, intensity: 2.0, sun_from_map: true))",
+    );
+    let s = scene::load_scene(&path).unwrap();
+    // The patch is 20° high toward +X in the file; turned by 90° it is toward −Z.
+    let (el, az) = (20f32.to_radians(), 0f32);
+    let toward = Vec3::new(az.sin() * el.cos(), el.sin(), -el.cos());
+    let to_sun = -s.file.sun.travel_dir();
+    assert!(to_sun.dot(toward) > 0.995, "{to_sun} vs {toward}");
+    // Its irradiance: the patch's excess over the sky around it × solid angle × intensity
+    // (a 12° cap: 2π(1 − cos 12°) = 0.137 sr, 6 × (1, 0.85, 0.6) over the sky).
+    let e = s.file.sun.color * s.file.sun.intensity;
+    let expect = Vec3::new(1.0, 0.85, 0.6) * 6.0 * 0.137 * 2.0;
+    assert!(
+        ((e - expect) / expect).abs().max_element() < 0.15,
+        "{e} vs {expect}"
+    );
+    // No bright region: no sun.
+    write_exr(&dir.join("plate.exr"), 16, 8, |_, _| Vec3::splat(0.4));
+    let s = scene::load_scene(&path).unwrap();
+    assert_eq!(s.file.sun.intensity, 0.0);
+}
