@@ -136,7 +136,7 @@ fn debug(dir: &Path) -> anyhow::Result<()> {
         },
     );
     p.sun.direction = Vec3::new(1.0, 0.0, 0.0);
-    p.sky = black;
+    p.sky = black.clone();
     let f = render_frame(&p, &[blob]);
     println!("sphere {}", lum_stats(&f));
     save(dir, "sphere.png", &f, &p)?;

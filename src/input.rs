@@ -21,6 +21,8 @@ pub enum Limit {
     Model,
     /// Something nephele wrote itself and reads back (a manifest, a cache index): 16 MiB.
     Own,
+    /// An image read as light (the sky's lat-long EXR): 1 GiB.
+    Image,
 }
 
 impl Limit {
@@ -30,6 +32,7 @@ impl Limit {
             Limit::Scene | Limit::Own => 16 << 20,
             Limit::Mesh => 2 << 30,
             Limit::Model => 256 << 20,
+            Limit::Image => 1 << 30,
         }
     }
 
@@ -40,6 +43,7 @@ impl Limit {
             Limit::Mesh => "a mesh",
             Limit::Model => "a blob model",
             Limit::Own => "a file nephele wrote",
+            Limit::Image => "an environment map (EXR)",
         }
     }
 }

@@ -4,7 +4,9 @@
 Input: a folder written by `tests/it/mitsuba.rs` (see its module doc):
   meta.json       camera, sun, phase function, nephele's times
   grid.vol        the volume export's Mitsuba grid: extinction per world unit, with its box
-  sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb)
+  sky.f32         the sky as a lat-long map in Mitsuba's envmap convention, (v, u, rgb);
+                  unused when meta.json's "envmap" names the scene's own EXR (an
+                  `Environment` sky: file, rotate_deg, intensity)
   nephele_ss.f32  nephele's frame, single scattering only, over the sky: (y, x, rgba)
   nephele_ms.f32  the same with nephele's multiple-scattering approximation
   nephele_grid_ss.f32  (optional) nephele's single scattering of grid.vol itself: the light
@@ -85,6 +87,20 @@ def read_vol(path):
     return np.ascontiguousarray(vals), box[:3], box[3:]
 
 
+def sky_emitter(meta, sky):
+    """The sky: nephele's as a map (sky.f32), or the scene's own EXR (meta "envmap": the same
+    file nephele read, turned about +Y by rotate_deg and scaled by intensity)."""
+    env = meta.get("envmap")
+    if env is None:
+        return {"type": "envmap", "bitmap": mi.Bitmap(sky)}
+    return {
+        "type": "envmap",
+        "filename": env["file"],
+        "scale": env["intensity"],
+        "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], env["rotate_deg"]),
+    }
+
+
 def scene_dict(meta, vol, sky, max_depth, spp, seed):
     T = mi.ScalarTransform4f
     grid, lo, hi = vol
@@ -113,7 +129,7 @@ def scene_dict(meta, vol, sky, max_depth, spp, seed):
             "direction": meta["sun_dir"],
             "irradiance": {"type": "rgb", "value": meta["sun_irradiance"]},
         },
-        "sky": {"type": "envmap", "bitmap": mi.Bitmap(sky)},
+        "sky": sky_emitter(meta, sky),
         "cloud": {
             "type": "cube",
             "bsdf": {"type": "null"},

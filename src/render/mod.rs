@@ -100,12 +100,13 @@ pub use output::film::{Film, Region};
 pub use camera::{Camera, CameraRays};
 pub use frame::{Frame, Passes};
 pub use settings::{
-    BasePlane, CloudMaterial, CumulusBase, InvalidField, NoiseSettings, Quality, QualityPreset,
-    RenderSettings, Sky, Sun,
+    BasePlane, CloudMaterial, CumulusBase, Environment, InvalidField, NoiseSettings, Quality,
+    QualityPreset, RenderSettings, Sky, Sun,
 };
 // The integrator on media of one's own, and what it asks of them:
 pub use camera::{Frustum, Ray};
 pub use integrator::{CloudVelocity, MotionSource, render_medium, render_medium_unshaded};
+pub use light::envmap::EnvMap;
 pub use light::grid::LightGrid;
 pub use light::phase;
 pub use light::sky_cells::{SKY_DIRECTIONS, directions as sky_directions};

@@ -238,6 +238,21 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         })?;
         c.file = full.to_string_lossy().into_owned();
     }
+    // The plate's light is read now: a missing or bad map is an error at `sky.file`.
+    if let crate::render::Sky::Environment(env) = &mut file.sky {
+        env.load(base).map_err(|message| {
+            SceneError::Invalid {
+                path: path.to_path_buf(),
+                field: "sky.file".into(),
+                message,
+            }
+            .located(text)
+        })?;
+        // `sun_from_map`: the map's sun is the scene's sun.
+        if let Some(sun) = env.map_sun() {
+            file.sun = sun;
+        }
+    }
     if let crate::animate::Animation::Morph(m) = &mut file.animation {
         // A `from` that cannot be read is located at its path in the scene text.
         let located = |p: &str, e: SceneError| match e {

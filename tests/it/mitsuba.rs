@@ -21,6 +21,12 @@
 //! `NEPHELE_MITSUBA_EXACT` marches the same-grid image's light depths exactly (minutes),
 //! `NEPHELE_MITSUBA_EXACT_SUN` the end-to-end single-scattering image's depth toward the sun
 //! (through the exported grid; a minute): what the light grid's resolution costs.
+//!
+//! The plate's light (`environment_single_scattering_matches_mitsuba`, always run): a test EXR
+//! as the sky, the same file for Mitsuba's `envmap`. `NEPHELE_MITSUBA_ENV_SIZE=640` runs it at
+//! 640×360, `NEPHELE_MITSUBA_ENV_CELLS` leaves the bright patch in the sky cells (no
+//! `sun_from_map`), `NEPHELE_MITSUBA_ENV_PATCH=0` drops it, `NEPHELE_MITSUBA_ENV_ANALYTIC` lights
+//! by an analytic gradient sky instead, `NEPHELE_MITSUBA_BILLOWS` keeps the billows.
 
 #[path = "mitsuba_support/grid_medium.rs"]
 mod grid_medium;
@@ -127,6 +133,19 @@ fn write_inputs(
     grid_res: u32,
     dir: &Path,
 ) -> (f64, f64) {
+    write_inputs_with(scene, frame, size, grid_res, dir, &|_| {})
+}
+
+/// [`write_inputs`] with the frame's settings changed by `adjust` (an `Environment` sky is
+/// passed to Mitsuba as its file, with its rotation and intensity).
+fn write_inputs_with(
+    scene: &Path,
+    frame: Option<u32>,
+    size: (u32, u32),
+    grid_res: u32,
+    dir: &Path,
+    adjust: &dyn Fn(&mut RenderSettings),
+) -> (f64, f64) {
     let mut scene = load_scene(scene).unwrap();
     (scene.file.shot.width, scene.file.shot.height) = size;
     let opts = RenderOptions {
@@ -160,6 +179,7 @@ fn write_inputs(
             horizon: glam::Vec3::splat(1e-4),
         };
     }
+    adjust(&mut s);
     std::fs::create_dir_all(dir).unwrap();
     // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
     let m = BlobMedium::new(&s, &blobs);
@@ -234,10 +254,21 @@ fn write_inputs(
     write_f32(&dir.join("sky.f32"), sky_map(&s, sw, sh));
     let sun_dir = s.sun.travel_dir();
     let tint = SkyDome::sun_tint(&s.sky, &s.sun);
-    let irr = s.sun.color * s.sun.intensity * tint;
+    let mut irr = s.sun.color * s.sun.intensity * tint;
+    if let nephele::render::Sky::Environment(_) = &s.sky {
+        // The map holds all the light for Mitsuba, a sun split off it (`sun_from_map`) too.
+        irr = glam::Vec3::ZERO;
+    }
     let v = |v: glam::Vec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
+    let envmap = match &s.sky {
+        nephele::render::Sky::Environment(env) => format!(
+            r#""envmap": {{"file": {:?}, "rotate_deg": {}, "intensity": {}}},"#,
+            env.file, env.rotate_deg, env.intensity
+        ),
+        _ => String::new(),
+    };
     let meta = format!(
-        r#"{{"width": {}, "height": {}, "position": {}, "look_at": {}, "up": {}, "fov_deg": {},
+        r#"{{{envmap}"width": {}, "height": {}, "position": {}, "look_at": {}, "up": {}, "fov_deg": {},
 "sun_dir": {}, "sun_irradiance": {}, "albedo": {}, "g": {}, "back_weight": {}, "back_ratio": {},
 "sky_size": [{sw}, {sh}], "grid_cells": {grid_cells},
 "exposure": {}, "nephele_seconds_ss": {}, "nephele_seconds_ms": {}}}"#,
@@ -267,6 +298,18 @@ fn repo() -> PathBuf {
 
 /// Run the comparison script; returns its stdout (JSON).
 fn compare(py: &str, dir: &Path, spp: u32, picture: Option<&Path>, reuse: bool) -> String {
+    compare_with(py, dir, spp, picture, reuse, false)
+}
+
+/// [`compare`], with Mitsuba's full transport left out when `only_ss`.
+fn compare_with(
+    py: &str,
+    dir: &Path,
+    spp: u32,
+    picture: Option<&Path>,
+    reuse: bool,
+    only_ss: bool,
+) -> String {
     let mut cmd = Command::new(py);
     cmd.arg(repo().join("tools/mitsuba_compare.py"))
         .arg(dir)
@@ -277,7 +320,7 @@ fn compare(py: &str, dir: &Path, spp: u32, picture: Option<&Path>, reuse: bool) 
     if reuse {
         cmd.arg("--reuse");
     }
-    if std::env::var("NEPHELE_MITSUBA_ONLY_SS").is_ok() {
+    if only_ss || std::env::var("NEPHELE_MITSUBA_ONLY_SS").is_ok() {
         cmd.arg("--only-ss");
     }
     let out = cmd.output().unwrap();
@@ -344,6 +387,88 @@ fn single_scattering_matches_mitsuba() {
         number(&json, "base_top_mitsuba_full"),
     );
     assert!((bt - bt_full).abs() < 0.1, "base/top {bt} vs {bt_full}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The plate's light: a non-uniform lat-long EXR written by the test (a gradient sky over a
+/// dark ground with a bright patch 20° high), turned by 60° about +Y, lights the duck alone
+/// (its bright patch split off as the sun, `sun_from_map`); Mitsuba's `envmap` reads the same
+/// file with `to_world = rotate(+Y, 60°)`, no sun. Single scattering on the same density.
+#[test]
+fn environment_single_scattering_matches_mitsuba() {
+    let Some(py) = python() else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("nephele-mitsuba-env-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let exr = dir.join("plate.exr");
+    // Texel (x, y) at u = (x + ½)/W and θ = π·y/(H − 1), as Mitsuba evaluates the map.
+    let (w, h) = (256, 128);
+    // NEPHELE_MITSUBA_ENV_PATCH: the patch's brightness (default 6; 0: the gradient alone).
+    let patch = std::env::var("NEPHELE_MITSUBA_ENV_PATCH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(6.0);
+    crate::environment::write_exr(&exr, w, h, |x, y| {
+        let (u, v) = ((x as f32 + 0.5) / w as f32, y as f32 / (h - 1) as f32);
+        crate::environment::test_map_with(u, v, patch)
+    });
+    // The bright patch as the sun (`sun_from_map`), or (NEPHELE_MITSUBA_ENV_CELLS) in the
+    // sky cells with the rest of the map.
+    let split = std::env::var("NEPHELE_MITSUBA_ENV_CELLS").is_err();
+    let env = nephele::render::Environment::open(&exr, 60.0, 1.5, split).unwrap();
+    let smooth = std::env::var("NEPHELE_MITSUBA_BILLOWS").is_err();
+    // NEPHELE_MITSUBA_ENV_SIZE=640: the comparison at 640×360 on a 384-cell grid (minutes).
+    let (size, cells) = match std::env::var("NEPHELE_MITSUBA_ENV_SIZE").as_deref() {
+        Ok("640") => ((640, 360), 384),
+        _ => ((160, 90), 96),
+    };
+    write_inputs_with(
+        &repo().join("scenes/duck-diffusion.ron"),
+        None,
+        size,
+        cells,
+        &dir,
+        &|s| {
+            s.sky = nephele::render::Sky::Environment(env.clone());
+            // Diagnosis: the same light from an analytic sky (through sky.f32 for Mitsuba).
+            if std::env::var("NEPHELE_MITSUBA_ENV_ANALYTIC").is_ok() {
+                s.sky = nephele::render::Sky::Gradient {
+                    zenith: glam::Vec3::new(0.12, 0.25, 0.6) * 1.5,
+                    horizon: glam::Vec3::new(0.55, 0.65, 0.8) * 1.5,
+                };
+            }
+            s.sun = env.map_sun().unwrap_or(nephele::render::Sun {
+                intensity: 0.0,
+                ..s.sun
+            });
+            // Smooth blobs: at 160×90 one ray a pixel point-samples billows that Mitsuba's box
+            // filter averages (most of the duck's end-to-end figure, `single_scattering_…`).
+            if smooth {
+                s.cloud.noise.octaves = 0;
+            }
+        },
+    );
+    let json = compare_with(&py, &dir, 256, None, false, true);
+    eprintln!("{json}");
+    // The goal was 5 % per pixel; measured (docs/MEASUREMENTS.md, "The plate's light"): same
+    // grid 0.13 (0.13 at 640×360 on a 384-cell grid), end to end 0.16 (0.13), mean ratio
+    // 1.02 (0.96), background 0.001 — and the same light from an analytic gradient sky through
+    // the same sky cells measures alike (same grid 0.12): what is left is the 26 sky cells'
+    // (each cell's light shadowed along one direction), not the map's integration. These bars
+    // leave room for the reference's noise at 256 spp (0.09) and catch a regression (the map
+    // turned the other way for Mitsuba: same grid 0.31, end to end 0.26, mean 0.78).
+    let same = number(&json, "ss_same_grid_rel_rmse");
+    assert!(same < 0.18, "same-grid single scattering differs by {same}");
+    let rmse = number(&json, "ss_rel_rmse");
+    assert!(
+        rmse < 0.22,
+        "single scattering differs from Mitsuba by {rmse}"
+    );
+    let ratio = number(&json, "ss_mean_ratio");
+    assert!((ratio - 1.0).abs() < 0.08, "mean ratio {ratio}");
+    let bg = number(&json, "background_rel_error");
+    assert!(bg < 0.01, "the background differs by {bg}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

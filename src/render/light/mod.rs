@@ -8,6 +8,7 @@
 //! this apart from the medium lets a light grid built from one medium (e.g. the cloud at the
 //! frame's time) light the march through another (the cloud at a motion-blur sample time).
 
+pub mod envmap;
 pub(crate) mod grid;
 pub mod phase;
 pub(crate) mod shading;

@@ -17,6 +17,7 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A};
 
+use crate::render::light::envmap::{TABLE_COLS, TABLE_ROWS};
 use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
 use crate::render::light::sky_dome::SkyDome;
 
@@ -101,7 +102,11 @@ impl SkyLight {
             }
         }
         let per_sample = 4.0 * PI / (ny * nphi) as f32;
-        let cell_power = std::array::from_fn(|k| Vec3A::from(sum[k] * per_sample));
+        let cell_power = match dome.environment() {
+            // A map: its texels' light summed per cell, by solid angle (`light/envmap.rs`).
+            Some((env, k)) => std::array::from_fn(|c| Vec3A::from(env.cells[c] * k)),
+            None => std::array::from_fn(|k| Vec3A::from(sum[k] * per_sample)),
+        };
         let f = g * g;
         let (g_smooth, g_back) = (g / (1.0 + g), BACK_LOBE_RATIO * g);
         let weights = [(1.0 - BACK_LOBE_WEIGHT) * (1.0 - f), BACK_LOBE_WEIGHT];
@@ -190,10 +195,18 @@ impl PrefilteredSky {
         };
         // The sky itself on a finer table of equal-solid-angle texels.
         let (sr, sc) = (2 * ROWS, 2 * COLS);
+        // A map: each texel's mean over its solid angle (a sunny map's sun is not missed
+        // between point samples).
+        let env = dome.environment();
+        const _: () = assert!(2 * ROWS == TABLE_ROWS && 2 * COLS == TABLE_COLS);
         let source: Vec<(Vec3A, Vec3A)> = (0..sr * sc)
             .map(|k| {
                 let d = dir((k / sc) as f32, (k % sc) as f32, sr, sc);
-                (d, Vec3A::from(dome.radiance(d.into())))
+                let l = match &env {
+                    Some((env, scale)) => env.table[k] * *scale,
+                    None => dome.radiance(d.into()),
+                };
+                (d, Vec3A::from(l))
             })
             .collect();
         let texels = (0..ROWS * COLS)
@@ -280,6 +293,58 @@ mod tests {
             let cells: Vec3A = light.ray_weights(v).iter().copied().sum::<Vec3A>()
                 + light.forward_radiance(v) * light.delta();
             let (ny, nphi) = (800, 800);
+            let mut exact = Vec3A::ZERO;
+            for i in 0..ny {
+                let y = -1.0 + 2.0 * (i as f32 + 0.5) / ny as f32;
+                let r = (1.0 - y * y).sqrt();
+                for j in 0..nphi {
+                    let phi = 2.0 * PI * (j as f32 + 0.5) / nphi as f32;
+                    let w = Vec3A::new(r * phi.cos(), y, r * phi.sin());
+                    exact += Vec3A::from(dome.radiance(w.into())) * cloud_phase(w.dot(v), g);
+                }
+            }
+            exact *= 4.0 * PI / (ny * nphi) as f32;
+            let err = ((cells - exact) / exact).abs().max_element();
+            assert!(err < 0.06, "view {v}: cells {cells} vs quadrature {exact}");
+        }
+    }
+
+    /// The same for an environment map with a bright patch, turned: its texels' light reaches
+    /// the cells and the prefiltered tables by solid angle, so the unshadowed sum is the map's
+    /// (a fine quadrature of its bilinear radiance) for any view direction.
+    #[test]
+    fn unshadowed_environment_matches_a_quadrature_of_the_phase_function() {
+        use crate::render::light::envmap::EnvMap;
+        use crate::render::settings::Environment;
+        let (w, h) = (64, 32);
+        let texels = (0..w * h)
+            .map(|k| {
+                let (x, y) = (k % w, k / w);
+                let sky = Vec3::new(0.2, 0.3, 0.6) * (1.0 + y as f32 / h as f32);
+                let patch = (10..14).contains(&x) && (9..12).contains(&y);
+                sky + if patch { Vec3::splat(30.0) } else { Vec3::ZERO }
+            })
+            .collect();
+        let map = EnvMap::from_texels(w, h, texels).unwrap();
+        let sky = Sky::Environment(Environment {
+            file: "test".into(),
+            rotate_deg: 40.0,
+            intensity: 1.5,
+            map: Some(std::sync::Arc::new(map)),
+            ..Environment::default()
+        });
+        let dome = SkyDome::new(&sky, &Sun::default());
+        let g = 0.75;
+        let light = SkyLight::new(&dome, g);
+        for v in [
+            Vec3A::X,
+            Vec3A::new(0.3, -0.4, 0.87).normalize(),
+            Vec3A::new(-0.5, 0.7, 0.2).normalize(),
+            Vec3A::NEG_Z,
+        ] {
+            let cells: Vec3A = light.ray_weights(v).iter().copied().sum::<Vec3A>()
+                + light.forward_radiance(v) * light.delta();
+            let (ny, nphi) = (800, 1600);
             let mut exact = Vec3A::ZERO;
             for i in 0..ny {
                 let y = -1.0 + 2.0 * (i as f32 + 0.5) / ny as f32;

@@ -6,9 +6,11 @@
 //! multiple-scattering octaves ([`crate::render::light::shading`]) and the background of the output use.
 
 use std::f32::consts::PI;
+use std::sync::Arc;
 
 use glam::Vec3;
 
+use crate::render::light::envmap::{EnvIntegrals, EnvMap, to_map};
 use crate::render::settings::{Sky, Sun};
 
 /// Fraction of the horizon colour seen below the horizon (a dim ground; gradient sky).
@@ -55,15 +57,42 @@ pub enum SkyDome {
         /// the sky, `ρ/π·(E_sun + E_sky)`.
         ground: Vec3,
     },
+    /// [`Sky::Uniform`].
+    Uniform {
+        /// The radiance from every direction.
+        color: Vec3,
+    },
+    /// [`Sky::Environment`]: the map, turned and scaled.
+    Environment {
+        /// The map (`None`: not read, a black sky).
+        map: Option<Arc<EnvMap>>,
+        /// What lights the cloud through the sky cells: the map, or the map without the sun
+        /// split off it (`sun_from_map`).
+        light: Option<Arc<EnvMap>>,
+        /// Degrees it is turned about +Y (right-handed).
+        rotate_deg: f32,
+        /// Scale of its radiance.
+        intensity: f32,
+    },
 }
 
 impl SkyDome {
     /// The dome of `sky` under `sun`. A Hosek–Wilkie sky with the sun below the horizon uses
     /// the model at elevation 0 (the model's range); inputs are validated by the scene file.
     pub fn new(sky: &Sky, sun: &Sun) -> SkyDome {
-        match *sky {
-            Sky::Gradient { zenith, horizon } => SkyDome::Gradient { zenith, horizon },
-            Sky::HosekWilkie {
+        match sky {
+            &Sky::Uniform { color } => SkyDome::Uniform { color },
+            Sky::Environment(env) => SkyDome::Environment {
+                map: env.map.clone(),
+                light: match &env.split {
+                    Some((rest, _)) => Some(Arc::clone(rest)),
+                    None => env.map.clone(),
+                },
+                rotate_deg: env.rotate_deg,
+                intensity: env.intensity,
+            },
+            &Sky::Gradient { zenith, horizon } => SkyDome::Gradient { zenith, horizon },
+            &Sky::HosekWilkie {
                 turbidity,
                 ground_albedo,
             } => {
@@ -101,8 +130,20 @@ impl SkyDome {
     /// above the horizon (square-root ramp in `dir.y`), horizon → dim ground below.
     /// Hosek–Wilkie: the model above the horizon; below, the ground lit by the sun and the sky
     /// (albedo `ground_albedo`), fading into the horizon's haze within `HAZE` of it.
+    ///
+    /// Uniform: its colour. Environment: the map's texels interpolated bilinearly, in
+    /// Mitsuba's `envmap` convention (`light/envmap.rs`), times the intensity.
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         match self {
+            SkyDome::Uniform { color } => *color,
+            SkyDome::Environment {
+                map,
+                rotate_deg,
+                intensity,
+                ..
+            } => map.as_ref().map_or(Vec3::ZERO, |m| {
+                m.lookup(to_map(dir, *rotate_deg)) * *intensity
+            }),
             SkyDome::Gradient { zenith, horizon } => {
                 if dir.y >= 0.0 {
                     horizon.lerp(*zenith, dir.y.min(1.0).sqrt())
@@ -143,6 +184,10 @@ impl SkyDome {
             // ∫ √y dy over [0, 1] = 2/3 (uniform solid angle in the upper hemisphere is uniform y).
             SkyDome::Gradient { zenith, horizon } => horizon.lerp(*zenith, 2.0 / 3.0),
             SkyDome::HosekWilkie { .. } => self.hemisphere_mean(1.0),
+            SkyDome::Uniform { color } => *color,
+            SkyDome::Environment { .. } => self
+                .environment()
+                .map_or(Vec3::ZERO, |(i, k)| i.upper_mean * k),
         }
     }
 
@@ -151,6 +196,24 @@ impl SkyDome {
         match self {
             SkyDome::Gradient { horizon, .. } => horizon.lerp(*horizon * GROUND, 2.0 / 3.0),
             SkyDome::HosekWilkie { .. } => self.hemisphere_mean(-1.0),
+            SkyDome::Uniform { color } => *color,
+            SkyDome::Environment { .. } => self
+                .environment()
+                .map_or(Vec3::ZERO, |(i, k)| i.lower_mean * k),
+        }
+    }
+
+    /// An environment map's integrals for its rotation (at intensity 1) and its intensity;
+    /// `None` for the analytic skies (and a map not read).
+    pub(crate) fn environment(&self) -> Option<(Arc<EnvIntegrals>, f32)> {
+        match self {
+            SkyDome::Environment {
+                light: Some(light),
+                rotate_deg,
+                intensity,
+                ..
+            } => Some((light.integrals(*rotate_deg), *intensity)),
+            _ => None,
         }
     }
 

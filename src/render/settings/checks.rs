@@ -67,10 +67,35 @@ impl Sun {
 
 impl Sky {
     /// Finite, non-negative colours; a Hošek–Wilkie sky's turbidity in 1..=10, ground albedo
-    /// in 0..=1, and `sun` above the horizon.
+    /// in 0..=1, and `sun` above the horizon; an environment's file named, a finite rotation
+    /// and an intensity ≥ 0 (its texels are checked when it is read).
     pub fn validate(&self, sun: &Sun) -> Result<(), InvalidField> {
-        match *self {
-            Sky::Gradient { zenith, horizon } => {
+        match self {
+            Sky::Uniform { color } => {
+                InvalidField::check_finite("sky.color", &color.to_array())?;
+                if color.min_element() < 0.0 {
+                    return Err(InvalidField::new(
+                        "sky.color",
+                        format!("must not be negative, got {:?}", color.to_array()),
+                    ));
+                }
+            }
+            Sky::Environment(env) => {
+                if env.file.trim().is_empty() {
+                    return Err(InvalidField::new(
+                        "sky.file",
+                        "name the lat-long EXR (relative to the scene file's folder)".to_string(),
+                    ));
+                }
+                InvalidField::check_finite("sky.rotate_deg", &[env.rotate_deg])?;
+                if !(env.intensity.is_finite() && env.intensity >= 0.0) {
+                    return Err(InvalidField::new(
+                        "sky.intensity",
+                        format!("must be ≥ 0, got {}", env.intensity),
+                    ));
+                }
+            }
+            &Sky::Gradient { zenith, horizon } => {
                 InvalidField::check_finite("sky.zenith", &zenith.to_array())?;
                 InvalidField::check_finite("sky.horizon", &horizon.to_array())?;
                 if zenith.min_element() < 0.0 || horizon.min_element() < 0.0 {
@@ -80,7 +105,7 @@ impl Sky {
                     ));
                 }
             }
-            Sky::HosekWilkie {
+            &Sky::HosekWilkie {
                 turbidity,
                 ground_albedo,
             } => {

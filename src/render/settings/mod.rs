@@ -6,9 +6,13 @@ mod checks;
 
 pub use checks::InvalidField;
 
+use std::path::Path;
+use std::sync::Arc;
+
 use glam::Vec3;
 
 use crate::render::camera::Camera;
+use crate::render::light::envmap::{EnvMap, MapSun, to_world};
 use serde::{Deserialize, Serialize};
 
 /// The sun: a directional light, given by a direction or by its position in the sky.
@@ -63,7 +67,7 @@ impl Sun {
 }
 
 /// Sky dome: the background and the ambient light on the cloud.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum Sky {
     /// Vertical gradient from the horizon colour to the zenith colour (linear RGB).
@@ -81,6 +85,119 @@ pub enum Sky {
         /// Ground albedo, `0..=1`.
         ground_albedo: f32,
     },
+    /// The same radiance from every direction, ground included (an overcast sky's ambient
+    /// light; what a constant [`Sky::Environment`] map equals).
+    Uniform {
+        /// Linear RGB radiance.
+        color: Vec3,
+    },
+    /// The plate's light: a lat-long (equirectangular) EXR, in Mitsuba's `envmap` convention
+    /// (`crate::render::light::envmap`), lights the cloud through the sky cells and is the
+    /// background. The scene's `sun` stays a light of its own.
+    Environment(Environment),
+}
+
+/// A lat-long EXR as the sky (`sky: Environment((file: "plate.exr"))`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Environment {
+    /// The EXR (relative paths resolve against the scene file's folder; the loaded scene holds
+    /// it resolved).
+    pub file: String,
+    /// Degrees the map is turned about +Y, right-handed (counter-clockwise seen from above):
+    /// at 90 what the file shows toward +Z is seen toward +X.
+    pub rotate_deg: f32,
+    /// Scale of the map's radiance.
+    pub intensity: f32,
+    /// Split the map's brightest region off as the sun ([`EnvMap::split_sun`]): it replaces
+    /// the scene's `sun` (direction and irradiance from the map; none when no region stands
+    /// out), and the sky cells light with the rest. The background still shows the whole map.
+    pub sun_from_map: bool,
+    /// The map, read when the scene is loaded (not written in scene files; `None` renders a
+    /// black sky).
+    #[serde(skip)]
+    pub map: Option<Arc<EnvMap>>,
+    /// With `sun_from_map`: the map without its sun (what the sky cells light with) and the
+    /// sun, in the map's frame (`None` when no region stands out as a sun).
+    #[serde(skip)]
+    pub split: Option<(Arc<EnvMap>, MapSun)>,
+}
+
+impl Default for Environment {
+    fn default() -> Self {
+        Environment {
+            file: String::new(),
+            rotate_deg: 0.0,
+            intensity: 1.0,
+            sun_from_map: false,
+            map: None,
+            split: None,
+        }
+    }
+}
+
+impl Environment {
+    /// The EXR at `path` as the sky, turned by `rotate_deg` and scaled by `intensity`; the
+    /// error names the file and says what is wrong.
+    pub fn open(
+        path: &Path,
+        rotate_deg: f32,
+        intensity: f32,
+        sun_from_map: bool,
+    ) -> Result<Environment, String> {
+        let mut env = Environment {
+            file: path.to_string_lossy().into_owned(),
+            rotate_deg,
+            intensity,
+            sun_from_map,
+            map: None,
+            split: None,
+        };
+        env.load(Path::new(""))?;
+        Ok(env)
+    }
+
+    /// Read `file` (resolved against `base`, and kept resolved): the error names the file and
+    /// says what is wrong.
+    pub fn load(&mut self, base: &Path) -> Result<(), String> {
+        let full = base.join(&self.file);
+        let map = EnvMap::read_exr(&full).map_err(|e| format!("{}: {e}", full.display()))?;
+        self.split = if self.sun_from_map {
+            map.split_sun().map(|(rest, sun)| (Arc::new(rest), sun))
+        } else {
+            None
+        };
+        self.map = Some(Arc::new(map));
+        self.file = full.to_string_lossy().into_owned();
+        Ok(())
+    }
+
+    /// With `sun_from_map`, the sun the map holds, turned and scaled as the map is (intensity 0
+    /// when it holds none); `None` without `sun_from_map`.
+    pub fn map_sun(&self) -> Option<Sun> {
+        if !self.sun_from_map {
+            return None;
+        }
+        let (dir, irradiance) = match &self.split {
+            Some((_, sun)) => (
+                to_world(sun.to_sun, self.rotate_deg),
+                sun.irradiance * self.intensity,
+            ),
+            None => (Vec3::Y, Vec3::ZERO),
+        };
+        let intensity = irradiance.max_element().max(0.0);
+        Some(Sun {
+            direction: -dir,
+            elevation_deg: None,
+            azimuth_deg: 0.0,
+            color: if intensity > 0.0 {
+                irradiance / intensity
+            } else {
+                Vec3::ONE
+            },
+            intensity,
+        })
+    }
 }
 
 impl Default for Sky {

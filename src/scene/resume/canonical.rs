@@ -257,6 +257,20 @@ impl Canonical for Sky {
             } => {
                 e.bytes(&[1]).put(turbidity).put(ground_albedo);
             }
+            Sky::Uniform { color } => {
+                e.bytes(&[2]).put(color);
+            }
+            // The map by its content (an edited HDRI re-renders; a moved one does not).
+            Sky::Environment(env) => {
+                e.bytes(&[3])
+                    .put(&env.rotate_deg)
+                    .put(&env.intensity)
+                    .put(&env.sun_from_map);
+                match &env.map {
+                    Some(m) => e.bytes(&[1]).put(&m.content_hash()),
+                    None => e.bytes(&[0]),
+                };
+            }
         }
     }
 }

@@ -296,7 +296,7 @@ impl Shot {
                 self.number(k),
             ),
             sun: f.sun,
-            sky: f.sky,
+            sky: f.sky.clone(),
             cloud: f.cloud,
             exposure: f.exposure,
             length_scale: prep.bounds.diagonal().max(1e-12) as f32,

@@ -93,7 +93,7 @@ pub fn shot_stage(shot: &Shot, stage_dir: &Path) -> Result<Stage, SceneError> {
         clipping: [1e-3 * length, 1e3 * length],
         shutter: scene.file.shot.shutter,
         sun: scene.file.sun,
-        sky: scene.file.sky,
+        sky: scene.file.sky.clone(),
         vdb_paths,
         doc: format!(
             "nephele {} shot of {}",
@@ -287,14 +287,37 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
     // trips); for a Hosek–Wilkie sky the renderer's mean radiance from above.
     let mean = match *sky {
         Sky::Gradient { zenith, horizon } => 0.5 * (zenith + horizon).as_dvec3(),
-        Sky::HosekWilkie { .. } => crate::render::SkyDome::new(sky, sun)
-            .upper_mean()
-            .as_dvec3(),
+        Sky::HosekWilkie { .. } | Sky::Uniform { .. } | Sky::Environment(_) => {
+            crate::render::SkyDome::new(sky, sun)
+                .upper_mean()
+                .as_dvec3()
+        }
     };
     let _ = writeln!(s, "    def DomeLight \"sky\" (");
     let _ = writeln!(s, "        customData = {{");
-    match *sky {
-        Sky::Gradient { zenith, horizon } => {
+    match sky {
+        Sky::Uniform { color } => {
+            let _ = writeln!(
+                s,
+                "            float3 nephele_uniform = {}",
+                vec3(color.as_dvec3())
+            );
+        }
+        // The map itself is not on the stage (USD's lat-long convention differs from the
+        // map's, Mitsuba's); its file and turn are noted.
+        Sky::Environment(env) => {
+            let _ = writeln!(
+                s,
+                "            string nephele_environment = {}",
+                quoted(&env.file)
+            );
+            let _ = writeln!(
+                s,
+                "            float nephele_rotate_deg = {}",
+                env.rotate_deg
+            );
+        }
+        &Sky::Gradient { zenith, horizon } => {
             let _ = writeln!(
                 s,
                 "            float3 nephele_zenith = {}",
@@ -306,7 +329,7 @@ fn sky(s: &mut String, sky: &Sky, sun: &Sun) {
                 vec3(horizon.as_dvec3())
             );
         }
-        Sky::HosekWilkie {
+        &Sky::HosekWilkie {
             turbidity,
             ground_albedo,
         } => {
