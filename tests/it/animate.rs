@@ -572,3 +572,56 @@ fn morph_pairs_splits_and_merges() {
         "a morph needs its source"
     );
 }
+
+/// Issue 51: the diffusion's velocity is non-zero wherever its blobs change, in every phase —
+/// blob I growing from its seed, category II moving out and growing, category III growing out
+/// of its parents, and the final part where only the blobs' strengths `B` rise (category III
+/// at full size, I/II blending to their fitted `B`), which used to give a velocity of 0.
+#[test]
+fn diffusion_velocity_is_non_zero_wherever_blobs_change_in_every_phase() {
+    use nephele::animate::VelocityField;
+    let model = shell_model(60);
+    let anim: Animation = Animation::Diffusion(DiffusionConfig::default());
+    let plan = animate::plan(&anim, &model, timeline(), 7).unwrap();
+    let tl = plan.timeline();
+    let h = 1e-3 / tl.fps;
+    let (mut moving, mut strength_only, mut still) = (0, 0, 0);
+    for k in 0..tl.frames {
+        let t = tl.time(k);
+        let (before, now, after) = (
+            plan.at((t - h).max(0.0)),
+            plan.at(t),
+            plan.at((t + h).min(tl.end())),
+        );
+        let field = VelocityField::of_plan(&plan, t);
+        let shape = |b: &Blob| (b.center, b.semi_axes);
+        let mut changed = 0;
+        let mut geometry = false;
+        for i in 0..now.len() {
+            let (a, b, c) = (before[i], now[i], after[i]);
+            if !b.is_live() || (a == b && b == c) {
+                continue;
+            }
+            changed += 1;
+            geometry |= shape(&a) != shape(&b) || shape(&b) != shape(&c);
+            // A point inside the blob, off its centre: the density there moves.
+            let x = b.center + glam::DMat3::from_quat(b.rotation) * (b.semi_axes * 0.5);
+            let v = field.velocity(x);
+            assert!(
+                v.length() > 0.0,
+                "frame {k}: blob {i} changes ({a:?} → {c:?}) but the velocity inside it is 0"
+            );
+        }
+        match (changed, geometry) {
+            (0, _) => still += 1,
+            (_, true) => moving += 1,
+            (_, false) => strength_only += 1,
+        }
+    }
+    eprintln!("frames: {moving} moving, {strength_only} changing strength only, {still} still");
+    assert!(moving > 0 && still > 0);
+    assert!(
+        strength_only > 0,
+        "the shot has a final part where only B changes (the regression's case)"
+    );
+}
