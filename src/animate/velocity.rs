@@ -28,7 +28,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::Plan;
+use super::{Plan, Timeline};
 use crate::blobby::{Blob, BlobField, THRESHOLD};
 
 /// Half-width of the centred difference, in frames (`1/1000` of a frame: far below any
@@ -135,15 +135,20 @@ impl VelocityField {
     /// ±[`DIFFERENCE_STEP`] of a frame, clipped to the shot (one-sided at its first and last
     /// frame, where the plan's paths end).
     pub fn of_plan(plan: &Plan, t: f64) -> VelocityField {
-        let timeline = plan.timeline();
+        VelocityField::of_path(plan.timeline(), t, |t| plan.at(t))
+    }
+
+    /// The velocity field at `t` seconds of the blobs `at(t)` over the shot of `timeline`
+    /// (as [`VelocityField::of_plan`]: a centred difference, one-sided at the shot's ends).
+    pub fn of_path(timeline: Timeline, t: f64, at: impl Fn(f64) -> Vec<Blob>) -> VelocityField {
         let h = DIFFERENCE_STEP / timeline.fps;
         let t0 = (t - h).max(0.0).min(t);
         let t1 = (t + h).min(timeline.end()).max(t);
-        let now = plan.at(t);
+        let now = at(t);
         if t1 <= t0 {
             return VelocityField::new(&now, &now, &now, 0.0);
         }
-        VelocityField::new(&plan.at(t0), &now, &plan.at(t1), t1 - t0)
+        VelocityField::new(&at(t0), &now, &at(t1), t1 - t0)
     }
 
     /// The blobs' motions (index = blob identity).
