@@ -32,7 +32,7 @@ use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
 pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
-pub use direct::{Direction, Wind};
+pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;
 pub use morph::{MorphConfig, MorphPlan};
 pub use velocity::{BlobMotion, VelocityField};

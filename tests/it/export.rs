@@ -992,3 +992,37 @@ fn wind_moves_the_frame_by_the_drift() {
         "{moved} vs {expected}"
     );
 }
+
+/// Issue 51, timing in a scene: the shot's frames follow the curve (a hold repeats the blobs,
+/// with a still `vel`), and a scene without `timing` keeps the plan's own pace.
+#[test]
+fn scene_timing_drives_the_shots_frames() {
+    use nephele::scene::{self, RenderOptions};
+    let open = |name: &str, extra: &str| {
+        let (dir, path) = cloud_scene_with(name, "Aggregation((hold_seconds: 0.25))", 24, extra);
+        let s = scene::load_scene(&path).unwrap();
+        (
+            dir,
+            scene::Shot::open(s, &RenderOptions::default()).unwrap(),
+        )
+    };
+    let (_a, plain) = open("timing-none", "output: (formats: [Exr])");
+    let (_b, timed) = open(
+        "timing-hold",
+        "timing: [(time: 0.0, progress: 0.0), (time: 0.25, progress: 0.5, ease: Smooth), \
+         (time: 0.75, progress: 0.5), (time: 0.9, progress: 1.0)]",
+    );
+    let prep = plain.prepared().unwrap();
+    for k in 0..24 {
+        assert_eq!(plain.blobs(k).unwrap(), prep.plan.frame(k as usize));
+    }
+    let held = timed.blobs(6).unwrap();
+    assert_ne!(held, plain.blobs(6).unwrap());
+    for k in 7..=18 {
+        assert_eq!(timed.blobs(k).unwrap(), held, "frame {k} is held");
+    }
+    let p = timed.prepared().unwrap();
+    let v = p.direction.velocity(&p.plan, 12.0 / 24.0);
+    assert!(v.motions().iter().all(|m| m.velocity == DVec3::ZERO));
+    assert_eq!(timed.blobs(23).unwrap(), plain.blobs(23).unwrap());
+}

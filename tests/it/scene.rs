@@ -851,6 +851,36 @@ fn bad_wind_and_timing_are_located() {
             3,
             "speed",
         ),
+        (
+            "timing-order",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [\n    (time: 1.0, progress: 0.0),\n    (time: 1.0, progress: 1.0),\n  ],\n)",
+            6,
+            "timing key 1: times must increase",
+        ),
+        (
+            "timing-one",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0)],\n)",
+            3,
+            "at least two keys",
+        ),
+        (
+            "timing-nan",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: NaN, progress: 1.0)],\n)",
+            3,
+            "finite",
+        ),
+        (
+            "timing-range",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: 2.0, progress: 1.5)],\n)",
+            3,
+            "[0, 1]",
+        ),
+        (
+            "timing-ease",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: 2.0, progress: 1.0, ease: Bouncy)],\n)",
+            3,
+            "Bouncy",
+        ),
     ];
     for (name, text, line, needle) in cases {
         let e = load_err(name, text);
@@ -867,4 +897,16 @@ fn bad_wind_and_timing_are_located() {
         s.file.wind.map(|w| w.velocity),
         Some(glam::DVec3::new(0.5, 0.0, -0.25))
     );
+    assert!(s.file.timing.is_none());
+    let (_d, p) = scene_dir(
+        "timing-ok",
+        "t.ron",
+        "Scene(target: Model(\"model.ron\"), timing: [(time: 0.0, progress: 0.0), \
+         (time: 1.0, progress: 0.5, ease: Smooth), (time: 2.0, progress: 0.2)])",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    let keys = s.file.timing.unwrap();
+    assert_eq!(keys.keys().len(), 3);
+    assert_eq!(keys.keys()[1].ease, nephele::animate::Ease::Smooth);
+    assert_eq!(keys.keys()[2].ease, nephele::animate::Ease::Linear);
 }

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
 use self::transform::TargetTransform;
 use super::SceneError;
-use crate::animate::{Animation, Wind};
+use crate::animate::{Animation, Timing, Wind};
 use crate::file_error::FileError;
 use crate::render::output::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
@@ -45,6 +45,10 @@ pub struct SceneFile {
     /// A steady wind carrying the whole cloud (default: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wind: Option<Wind>,
+    /// A retime curve from the shot's time to the scheme's progress (default: none, the
+    /// scheme's own pace).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timing: Option<Timing>,
     /// Camera.
     #[serde(default)]
     pub camera: CameraSpec,

@@ -418,11 +418,9 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     })?;
     Ok(Prepared {
         model,
-        plan,
         bounds,
         origin,
-        direction: animate::Direction {
-            wind: scene.file.wind,
-        },
+        direction: animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone()),
+        plan,
     })
 }
