@@ -16,6 +16,7 @@
 pub mod aggregation;
 pub mod cumulus;
 pub mod diffusion;
+pub mod direct;
 pub mod mattes;
 pub mod morph;
 pub mod pieces;
@@ -31,6 +32,7 @@ use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
 pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
+pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;
 pub use morph::{MorphConfig, MorphPlan};
 pub use velocity::{BlobMotion, VelocityField};

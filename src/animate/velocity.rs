@@ -12,14 +12,23 @@
 //! evaluated by a centred difference of the plan's blobs over [`DIFFERENCE_STEP`] of a frame
 //! (one-sided at the shot's first and last frame). Where blobs overlap, the velocity of the
 //! density is their motions weighted by each blob's share of the field:
-//! `v(x) = Σ f_i(x)·v_i(x) / Σ f_i(x)` (0 where no blob reaches). A blob that fades in or out
-//! (its `B` changes) changes the density without moving it: that is not a velocity.
+//! `v(x) = Σ f_i(x)·v_i(x) / Σ f_i(x)` (0 where no blob reaches).
+//!
+//! A blob whose strength `B` changes grows or shrinks too: its own field
+//! `f = B²(1 − ρ²/(1+A))²` keeps its value on the surface `ρ(t)` where `B·(1 − ρ²/(1+A))` is
+//! constant, so the level set through its ellipsoid (`ρ = 1`, the blob's own surface) moves
+//! at `ρ̇ = (A/2)·Ḃ/B`. The blob's neighbourhood is carried by that growth as by a change of
+//! its semi-axes: an isotropic scaling about its centre at the rate `(A/2)·Ḃ/B` per second,
+//! added to the gradient (`v_i(x) += (A/2)·(Ḃ/B)·(x − c)`). The diffusion's final part, where
+//! category III is at full size and only the blobs' `B` rise (and I/II's blend to the fitted
+//! ones), is such a growth; so is a morph's fade. A blob at `B = 0` has no share of the field,
+//! so its rate does not matter (it is 0).
 //!
 //! Units: world units per second (the plan's blobs are in world units, times in seconds).
 
 use glam::{DMat3, DVec3};
 
-use super::Plan;
+use super::{Plan, Timeline};
 use crate::blobby::{Blob, BlobField, THRESHOLD};
 
 /// Half-width of the centred difference, in frames (`1/1000` of a frame: far below any
@@ -66,6 +75,8 @@ impl BlobMotion {
         } else {
             DMat3::ZERO
         };
+        let gradient = gradient
+            + DMat3::from_diagonal(DVec3::splat(strength_growth(before, now, after, span)));
         let finite = velocity.is_finite() && gradient.is_finite();
         BlobMotion {
             center: now.center,
@@ -79,6 +90,17 @@ impl BlobMotion {
     pub fn at(&self, x: DVec3) -> DVec3 {
         self.velocity + self.gradient * (x - self.center)
     }
+}
+
+/// `(A/2)·Ḃ/B` of blob `now` from its strengths `span` seconds apart (0 when it is off now, or
+/// anything is not finite).
+fn strength_growth(before: &Blob, now: &Blob, after: &Blob, span: f64) -> f64 {
+    let b = now.b.abs();
+    if !(b > 0.0 && span > 0.0) {
+        return 0.0;
+    }
+    let rate = 0.5 * now.a * (after.b.abs() - before.b.abs()) / (span * b);
+    if rate.is_finite() { rate } else { 0.0 }
 }
 
 /// The velocity of the density of one instant: every blob's motion and the field that weighs
@@ -113,15 +135,20 @@ impl VelocityField {
     /// ±[`DIFFERENCE_STEP`] of a frame, clipped to the shot (one-sided at its first and last
     /// frame, where the plan's paths end).
     pub fn of_plan(plan: &Plan, t: f64) -> VelocityField {
-        let timeline = plan.timeline();
+        VelocityField::of_path(plan.timeline(), t, |t| plan.at(t))
+    }
+
+    /// The velocity field at `t` seconds of the blobs `at(t)` over the shot of `timeline`
+    /// (as [`VelocityField::of_plan`]: a centred difference, one-sided at the shot's ends).
+    pub fn of_path(timeline: Timeline, t: f64, at: impl Fn(f64) -> Vec<Blob>) -> VelocityField {
         let h = DIFFERENCE_STEP / timeline.fps;
         let t0 = (t - h).max(0.0).min(t);
         let t1 = (t + h).min(timeline.end()).max(t);
-        let now = plan.at(t);
+        let now = at(t);
         if t1 <= t0 {
             return VelocityField::new(&now, &now, &now, 0.0);
         }
-        VelocityField::new(&plan.at(t0), &now, &plan.at(t1), t1 - t0)
+        VelocityField::new(&at(t0), &now, &at(t1), t1 - t0)
     }
 
     /// The blobs' motions (index = blob identity).
@@ -183,6 +210,45 @@ mod tests {
                 m.at(x)
             );
         }
+    }
+
+    #[test]
+    fn a_blob_whose_strength_rises_grows_with_its_own_surface() {
+        // B rising at rate β (Ḃ/B): the level set of the blob's field through ρ = 1 moves
+        // to ρ(h) with B(h)·(1 − ρ²/(1+A)) = B(0)·(1 − 1/(1+A)); the velocity at the
+        // surface point is that speed, outward, and zero at the centre.
+        let (beta, h) = (0.4, 1e-5);
+        let c = DVec3::new(0.3, -0.2, 0.1);
+        let base = Blob {
+            rotation: DQuat::from_rotation_y(0.7),
+            semi_axes: DVec3::new(1.0, 0.6, 0.4),
+            ..sphere_blob(c, 1.0)
+        };
+        let at = |t: f64| Blob {
+            b: base.b * (beta * t).exp(),
+            ..base
+        };
+        let m = BlobMotion::between(&at(-h), &at(0.0), &at(h), 2.0 * h);
+        let a = base.a;
+        let rho_after = ((1.0 + a) * (1.0 - (base.b / at(h).b) * (1.0 - 1.0 / (1.0 + a)))).sqrt();
+        let speed = (rho_after - 1.0) / h; // in ρ per second; ρ = 1 is the ellipsoid
+        let axis = DMat3::from_quat(base.rotation) * DVec3::new(0.0, 0.6, 0.0);
+        let v = m.at(c + axis);
+        let expected = axis * speed;
+        assert!(
+            (v - expected).length() < 1e-4 * expected.length(),
+            "{v} vs {expected}"
+        );
+        assert!((speed - 0.5 * a * beta).abs() < 1e-4, "{speed}");
+        assert_eq!(m.at(c), DVec3::ZERO);
+        // Fading out moves inward; a blob off now has no growth.
+        let fade = BlobMotion::between(&at(h), &at(0.0), &at(-h), 2.0 * h);
+        assert!(fade.at(c + axis).dot(axis) < 0.0);
+        let off = Blob { b: 0.0, ..base };
+        assert_eq!(
+            BlobMotion::between(&off, &off, &at(h), 2.0 * h).gradient,
+            DMat3::ZERO
+        );
     }
 
     #[test]

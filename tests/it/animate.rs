@@ -572,3 +572,191 @@ fn morph_pairs_splits_and_merges() {
         "a morph needs its source"
     );
 }
+
+/// Issue 51: the diffusion's velocity is non-zero wherever its blobs change, in every phase —
+/// blob I growing from its seed, category II moving out and growing, category III growing out
+/// of its parents, and the final part where only the blobs' strengths `B` rise (category III
+/// at full size, I/II blending to their fitted `B`), which used to give a velocity of 0.
+#[test]
+fn diffusion_velocity_is_non_zero_wherever_blobs_change_in_every_phase() {
+    use nephele::animate::VelocityField;
+    let model = shell_model(60);
+    let anim: Animation = Animation::Diffusion(DiffusionConfig::default());
+    let plan = animate::plan(&anim, &model, timeline(), 7).unwrap();
+    let tl = plan.timeline();
+    let h = 1e-3 / tl.fps;
+    let (mut moving, mut strength_only, mut still) = (0, 0, 0);
+    for k in 0..tl.frames {
+        let t = tl.time(k);
+        let (before, now, after) = (
+            plan.at((t - h).max(0.0)),
+            plan.at(t),
+            plan.at((t + h).min(tl.end())),
+        );
+        let field = VelocityField::of_plan(&plan, t);
+        let shape = |b: &Blob| (b.center, b.semi_axes);
+        let mut changed = 0;
+        let mut geometry = false;
+        for i in 0..now.len() {
+            let (a, b, c) = (before[i], now[i], after[i]);
+            if !b.is_live() || (a == b && b == c) {
+                continue;
+            }
+            changed += 1;
+            geometry |= shape(&a) != shape(&b) || shape(&b) != shape(&c);
+            // A point inside the blob, off its centre: the density there moves.
+            let x = b.center + glam::DMat3::from_quat(b.rotation) * (b.semi_axes * 0.5);
+            let v = field.velocity(x);
+            assert!(
+                v.length() > 0.0,
+                "frame {k}: blob {i} changes ({a:?} → {c:?}) but the velocity inside it is 0"
+            );
+        }
+        match (changed, geometry) {
+            (0, _) => still += 1,
+            (_, true) => moving += 1,
+            (_, false) => strength_only += 1,
+        }
+    }
+    eprintln!("frames: {moving} moving, {strength_only} changing strength only, {still} still");
+    assert!(moving > 0 && still > 0);
+    assert!(
+        strength_only > 0,
+        "the shot has a final part where only B changes (the regression's case)"
+    );
+}
+
+/// A retime curve from `(time, progress)` keys, linear.
+fn timing(keys: &[(f64, f64)]) -> animate::Timing {
+    let keys: Vec<animate::TimingKey> = keys
+        .iter()
+        .map(|&(time, progress)| animate::TimingKey {
+            time,
+            progress,
+            ease: animate::Ease::Linear,
+        })
+        .collect();
+    animate::Timing::try_from(keys).unwrap()
+}
+
+fn plans() -> Vec<(&'static str, Plan)> {
+    let model = shell_model(40);
+    let agg: Animation = Animation::Aggregation(AggregationConfig::default());
+    let dif: Animation = Animation::Diffusion(DiffusionConfig::default());
+    vec![
+        (
+            "aggregation",
+            animate::plan(&agg, &model, timeline(), 7).unwrap(),
+        ),
+        (
+            "diffusion",
+            animate::plan(&dif, &model, timeline(), 7).unwrap(),
+        ),
+    ]
+}
+
+/// Issue 51, timing: a hold of the curve gives bit-identical blobs over the held frames; a
+/// curve that runs back mirrors the one that runs forward; without a curve the blobs are the
+/// plan's.
+#[test]
+fn timing_holds_and_runs_backwards() {
+    let tl = timeline();
+    let end = tl.end();
+    for (name, plan) in plans() {
+        // Hold at half way from 1 s to 2 s.
+        let d = animate::Direction::new(
+            &plan,
+            None,
+            Some(timing(&[(0.0, 0.0), (1.0, 0.5), (2.0, 0.5), (end, 1.0)])),
+        );
+        let held: Vec<usize> = (0..tl.frames)
+            .filter(|&k| (1.0..=2.0).contains(&tl.time(k)))
+            .collect();
+        assert!(held.len() > 20);
+        let first = d.frame(&plan, held[0]);
+        for &k in &held {
+            let f = d.frame(&plan, k);
+            assert!(
+                f.iter().zip(&first).all(|(a, b)| bits(a) == bits(b)),
+                "{name}: frame {k} moves during the hold"
+            );
+            // And still: its velocity is 0 (inside the hold).
+            if k != held[0] && k != *held.last().unwrap() {
+                let v = d.velocity(&plan, tl.time(k));
+                assert!(
+                    v.motions().iter().all(|m| m.velocity == DVec3::ZERO),
+                    "{name}"
+                );
+            }
+        }
+        // The hold shows the scheme half way through its motion.
+        let half = plan.at(0.5 * tl.motion_seconds());
+        assert!(first.iter().zip(&half).all(|(a, b)| bits(a) == bits(b)));
+        // Forward and backward over the whole shot mirror each other.
+        let fwd = animate::Direction::new(&plan, None, Some(timing(&[(0.0, 0.0), (end, 1.0)])));
+        let back = animate::Direction::new(&plan, None, Some(timing(&[(0.0, 1.0), (end, 0.0)])));
+        for k in 0..tl.frames {
+            let (a, b) = (back.frame(&plan, k), fwd.frame(&plan, tl.frames - 1 - k));
+            for (x, y) in a.iter().zip(&b) {
+                let close = x.center.distance(y.center) < 1e-9
+                    && x.semi_axes.distance(y.semi_axes) < 1e-9
+                    && (x.b - y.b).abs() < 1e-9;
+                assert!(close, "{name}: frame {k} does not mirror: {x:?} vs {y:?}");
+            }
+        }
+        // No curve, no wind: the plan's blobs, bit for bit.
+        let plain = animate::Direction::new(&plan, None, None);
+        for k in [0, 10, 40, tl.frames - 1] {
+            let (a, b) = (plain.frame(&plan, k), plan.frame(k));
+            assert!(a.iter().zip(&b).all(|(x, y)| bits(x) == bits(y)));
+        }
+    }
+}
+
+/// Issue 51, timing: velocities follow the retimed speed — the plan's own motion at the
+/// scheme's time, times the curve's slope (`ds/dt`, the chain rule), backwards too.
+#[test]
+fn timing_scales_velocities_by_the_curves_slope() {
+    let tl = timeline();
+    let end = tl.end();
+    let motion = tl.motion_seconds();
+    for (name, plan) in plans() {
+        // Half speed, then backwards at twice the speed.
+        let keys = [(0.0, 0.1), (1.5, 0.4), (2.5, 0.05)];
+        let d = animate::Direction::new(&plan, None, Some(timing(&keys)));
+        let mut checked = 0;
+        for &(t, slope) in &[
+            (0.4, 0.3 / 1.5),
+            (0.9, 0.3 / 1.5),
+            (1.8, -0.35),
+            (2.2, -0.35),
+        ] {
+            assert!(t < end);
+            let s = d.scheme_time(t);
+            let ds = slope * motion;
+            let got = d.velocity(&plan, t);
+            let own = animate::VelocityField::of_plan(&plan, s);
+            let scale = own
+                .motions()
+                .iter()
+                .map(|m| m.velocity.length() + m.gradient.abs().to_cols_array().iter().sum::<f64>())
+                .fold(0.0, f64::max)
+                * ds.abs();
+            assert!(scale > 0.0, "{name}: something moves at {t} s");
+            for (g, o) in got.motions().iter().zip(own.motions()) {
+                let dv = (g.velocity - o.velocity * ds).length();
+                let dg = (g.gradient - o.gradient * ds)
+                    .abs()
+                    .to_cols_array()
+                    .iter()
+                    .sum::<f64>();
+                assert!(
+                    dv < 1e-5 * scale && dg < 1e-5 * scale,
+                    "{name} at {t} s: {g:?} vs {o:?} × {ds}"
+                );
+            }
+            checked += 1;
+        }
+        assert_eq!(checked, 4);
+    }
+}

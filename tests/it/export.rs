@@ -1030,3 +1030,161 @@ fn openvdb_reads_vel_beside_density_and_it_matches_the_blobs_motion() {
         "vel differs from the dumps' motion: {rms} vs {speed}"
     );
 }
+
+/// Issue 51, wind: a still cloud (the whole shot inside the hold) in a wind has `vel` equal to
+/// the wind at every active voxel, within 1 %.
+#[test]
+fn wind_vel_equals_the_wind_for_a_still_cloud() {
+    let wind = DVec3::new(0.3, -0.1, 0.2);
+    let (dir, path) = cloud_scene_with(
+        "wind-vel",
+        "Aggregation((hold_seconds: 2.0))",
+        24,
+        &format!(
+            "wind: (velocity: ({}, {}, {})), output: (formats: [Vdb], voxel: 0.03)",
+            wind.x, wind.y, wind.z
+        ),
+    );
+    // The blobs and the velocity field, without any reader.
+    let s = nephele::scene::load_scene(&path).unwrap();
+    let shot = nephele::scene::Shot::open(s, &nephele::scene::RenderOptions::default()).unwrap();
+    let prep = shot.prepared().unwrap();
+    let (b0, b12) = (shot.blobs(0).unwrap(), shot.blobs(12).unwrap());
+    for (a, b) in b0.iter().zip(&b12) {
+        assert!((b.center - a.center - wind * 0.5).length() < 1e-12);
+    }
+    let field = prep.direction.velocity(&prep.plan, 0.5);
+    for b in &b12 {
+        let v = field.velocity(b.center + DVec3::new(0.05, 0.02, -0.03));
+        assert!((v - wind).length() < 1e-6 * wind.length(), "{v}");
+    }
+    // And in the VDB, read by OpenVDB.
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_nephele"))
+        .arg("render")
+        .arg(&path)
+        .args(["--frames", "13", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let Some((_, vel)) = openvdb_grid(&out.join("shot_0013.vdb"), "vel") else {
+        return;
+    };
+    assert!(!vel.is_empty());
+    let worst = vel
+        .iter()
+        .map(|(_, _, v)| {
+            (DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) - wind).length() / wind.length()
+        })
+        .fold(0.0f64, f64::max);
+    eprintln!(
+        "wind vel: {} voxels, worst relative error {worst:.2e}",
+        vel.len()
+    );
+    assert!(worst < 0.01, "vel differs from the wind by {worst}");
+}
+
+/// Issue 51, wind: the frame at time `t` is the windless frame moved by `wind · t` — rendered
+/// with the camera moved along, it is the windless frame; with the camera still, the alpha's
+/// centroid moves by the displacement's projection.
+#[test]
+fn wind_moves_the_frame_by_the_drift() {
+    use nephele::scene::{self, RenderOptions};
+    // The camera looks down −z at the cloud (centre about (3, −1, 2)) from 4 units away.
+    let camera = |d: f64| {
+        format!(
+            "camera: Fixed((position: ({}, -1.0, 6.0), look_at: ({}, -1.0, 2.0), fov_deg: 40.0))",
+            3.0 + d,
+            3.0 + d
+        )
+    };
+    let still = "Aggregation((hold_seconds: 2.0))";
+    let render = |name: &str, extra: String| {
+        use nephele::blobby::{BlobModel, save_model};
+        let dir = temp_dir(name);
+        let model = BlobModel::from_blobs("test:cloud", 1.0, 1, cloud());
+        save_model(&dir.join("model.ron"), &model).unwrap();
+        let path = dir.join("shot.ron");
+        std::fs::write(
+            &path,
+            format!(
+                "Scene(target: Model(\"model.ron\"), animation: {still}, \
+                 shot: (width: 48, height: 30, fps: 24, seconds: 1.0), seed: 3, \
+                 quality: Preview, {extra})"
+            ),
+        )
+        .unwrap();
+        let s = scene::load_scene(&path).unwrap();
+        let shot = scene::Shot::open(s, &RenderOptions::default()).unwrap();
+        shot.render_frame(12).unwrap()
+    };
+    let (w, t) = (0.4, 0.5);
+    let windless = render("wind-none", camera(0.0));
+    let windy = render(
+        "wind-still-camera",
+        format!("{}, wind: (velocity: ({w}, 0.0, 0.0))", camera(0.0)),
+    );
+    let along = render(
+        "wind-camera-along",
+        format!("{}, wind: (velocity: ({w}, 0.0, 0.0))", camera(w * t)),
+    );
+    let (mut worst, mut sum) = (0.0f32, 0.0f64);
+    for (a, b) in windless.alpha.iter().zip(&along.alpha) {
+        worst = worst.max((a - b).abs());
+        sum += (a - b).abs() as f64;
+    }
+    let mean = sum / windless.alpha.len() as f64;
+    eprintln!("camera moved along: alpha differs by at most {worst:.2e}, mean {mean:.2e}");
+    assert!(worst < 0.02 && mean < 1e-3, "{worst} {mean}");
+    let centroid = |f: &nephele::render::Frame| {
+        let (mut sx, mut sa) = (0.0f64, 0.0f64);
+        for (i, &a) in f.alpha.iter().enumerate() {
+            sx += (i % f.width as usize) as f64 * a as f64;
+            sa += a as f64;
+        }
+        sx / sa
+    };
+    // 0.2 units at a depth of 4 under a 40° vertical field of view, 30 pixels high.
+    let expected = w * t / (2.0 * 4.0 * (20f64).to_radians().tan()) * 30.0;
+    let moved = centroid(&windy) - centroid(&windless);
+    eprintln!("alpha centroid moved {moved:.3} px, projected drift {expected:.3} px");
+    assert!(
+        (moved - expected).abs() < 0.1 * expected,
+        "{moved} vs {expected}"
+    );
+}
+
+/// Issue 51, timing in a scene: the shot's frames follow the curve (a hold repeats the blobs,
+/// with a still `vel`), and a scene without `timing` keeps the plan's own pace.
+#[test]
+fn scene_timing_drives_the_shots_frames() {
+    use nephele::scene::{self, RenderOptions};
+    let open = |name: &str, extra: &str| {
+        let (dir, path) = cloud_scene_with(name, "Aggregation((hold_seconds: 0.25))", 24, extra);
+        let s = scene::load_scene(&path).unwrap();
+        (
+            dir,
+            scene::Shot::open(s, &RenderOptions::default()).unwrap(),
+        )
+    };
+    let (_a, plain) = open("timing-none", "output: (formats: [Exr])");
+    let (_b, timed) = open(
+        "timing-hold",
+        "timing: [(time: 0.0, progress: 0.0), (time: 0.25, progress: 0.5, ease: Smooth), \
+         (time: 0.75, progress: 0.5), (time: 0.9, progress: 1.0)]",
+    );
+    let prep = plain.prepared().unwrap();
+    for k in 0..24 {
+        assert_eq!(plain.blobs(k).unwrap(), prep.plan.frame(k as usize));
+    }
+    let held = timed.blobs(6).unwrap();
+    assert_ne!(held, plain.blobs(6).unwrap());
+    for k in 7..=18 {
+        assert_eq!(timed.blobs(k).unwrap(), held, "frame {k} is held");
+    }
+    let p = timed.prepared().unwrap();
+    let v = p.direction.velocity(&p.plan, 12.0 / 24.0);
+    assert!(v.motions().iter().all(|m| m.velocity == DVec3::ZERO));
+    assert_eq!(timed.blobs(23).unwrap(), plain.blobs(23).unwrap());
+}

@@ -827,3 +827,86 @@ fn a_chan_camera_drives_the_shot_by_frame_number() {
     assert!(t.contains("1 frames rendered, 3 already done"), "{t}");
     assert!(t.contains("changed: camera"), "{t}");
 }
+
+// ---- Wind and timing (issue 51): bad input is located. ----
+
+#[test]
+fn bad_wind_and_timing_are_located() {
+    let cases = [
+        (
+            "wind-inf",
+            "Scene(\n  target: Model(\"model.ron\"),\n  wind: (velocity: (1.0, inf, 0.0)),\n)",
+            3,
+            "wind.velocity",
+        ),
+        (
+            "wind-nan",
+            "Scene(\n  target: Model(\"model.ron\"),\n  wind: (velocity: (NaN, 0.0, 0.0)),\n)",
+            3,
+            "finite",
+        ),
+        (
+            "wind-field",
+            "Scene(\n  target: Model(\"model.ron\"),\n  wind: (speed: 2.0),\n)",
+            3,
+            "speed",
+        ),
+        (
+            "timing-order",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [\n    (time: 1.0, progress: 0.0),\n    (time: 1.0, progress: 1.0),\n  ],\n)",
+            6,
+            "timing key 1: times must increase",
+        ),
+        (
+            "timing-one",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0)],\n)",
+            3,
+            "at least two keys",
+        ),
+        (
+            "timing-nan",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: NaN, progress: 1.0)],\n)",
+            3,
+            "finite",
+        ),
+        (
+            "timing-range",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: 2.0, progress: 1.5)],\n)",
+            3,
+            "[0, 1]",
+        ),
+        (
+            "timing-ease",
+            "Scene(\n  target: Model(\"model.ron\"),\n  timing: [(time: 0.0, progress: 0.0), (time: 2.0, progress: 1.0, ease: Bouncy)],\n)",
+            3,
+            "Bouncy",
+        ),
+    ];
+    for (name, text, line, needle) in cases {
+        let e = load_err(name, text);
+        assert_located(&e, line, needle);
+    }
+    // A wind is optional; one written parses.
+    let (_d, p) = scene_dir(
+        "wind-ok",
+        "w.ron",
+        "Scene(target: Model(\"model.ron\"), wind: (velocity: (0.5, 0.0, -0.25)))",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    assert_eq!(
+        s.file.wind.map(|w| w.velocity),
+        Some(glam::DVec3::new(0.5, 0.0, -0.25))
+    );
+    assert!(s.file.timing.is_none());
+    let (_d, p) = scene_dir(
+        "timing-ok",
+        "t.ron",
+        "Scene(target: Model(\"model.ron\"), timing: [(time: 0.0, progress: 0.0), \
+         (time: 1.0, progress: 0.5, ease: Smooth), (time: 2.0, progress: 0.2)])",
+    );
+    let s = scene::load_scene(&p).unwrap();
+    let keys = s.file.timing.unwrap();
+    assert_eq!(keys.keys().len(), 3);
+    assert_eq!(keys.keys()[1].ease, nephele::animate::Ease::Smooth);
+    assert_eq!(keys.keys()[2].ease, nephele::animate::Ease::Linear);
+}

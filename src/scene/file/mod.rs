@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
 use self::transform::TargetTransform;
 use super::SceneError;
-use crate::animate::Animation;
+use crate::animate::{Animation, Timing, Wind};
 use crate::file_error::FileError;
 use crate::render::output::ColorSpace;
 use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
@@ -42,6 +42,13 @@ pub struct SceneFile {
     /// The animation scheme.
     #[serde(default)]
     pub animation: Animation<Target>,
+    /// A steady wind carrying the whole cloud (default: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind: Option<Wind>,
+    /// A retime curve from the shot's time to the scheme's progress (default: none, the
+    /// scheme's own pace).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timing: Option<Timing>,
     /// Camera.
     #[serde(default)]
     pub camera: CameraSpec,

@@ -161,9 +161,9 @@ pub(crate) fn write_frame(
                 let uuid_seed =
                     crate::rng::key(scene.file.seed, crate::rng::Stream::Render, frame as u64);
                 // The velocity of the density on its voxels, at the frame's time.
-                let plan = &shot.prepared()?.plan;
-                let time = plan.timeline().time(shot.index(frame) as usize);
-                let field = crate::animate::VelocityField::of_plan(plan, time);
+                let prep = shot.prepared()?;
+                let time = prep.plan.timeline().time(shot.index(frame) as usize);
+                let field = prep.direction.velocity(&prep.plan, time);
                 let vel = crate::export::sample_velocity(g, &field);
                 let precision = scene.file.output.vdb_precision;
                 let grids = [

@@ -66,6 +66,8 @@ pub struct Prepared {
     pub bounds: Aabb,
     /// Where the target came from.
     pub origin: TargetOrigin,
+    /// How the shot plays the plan: the scene's wind and retime.
+    pub direction: animate::Direction,
 }
 
 /// A scene's shot, opened once for a run (see the module doc).
@@ -309,6 +311,11 @@ impl Shot {
             },
             base: f.cloud.base.map(|b| {
                 let (bottom, height) = (prep.bounds.min.y, prep.bounds.max.y - prep.bounds.min.y);
+                // The base drifts with the cloud (only when there is a wind: same bits without).
+                let bottom = match prep.direction.wind {
+                    Some(_) => bottom + prep.direction.drift(k as f64 / f.shot.fps).y,
+                    None => bottom,
+                };
                 BasePlane {
                     y: (bottom + b.height as f64 * height) as f32,
                     softness: (b.softness as f64 * height) as f32,
@@ -333,7 +340,8 @@ impl Shot {
 
     /// The blobs of 0-based frame `k`.
     pub fn blobs(&self, k: u32) -> Result<Vec<Blob>, SceneError> {
-        Ok(self.prepared()?.plan.frame(k as usize))
+        let prep = self.prepared()?;
+        Ok(prep.direction.frame(&prep.plan, k as usize))
     }
 
     /// Render 0-based frame `k` in memory (with the passes if the shot asks for them).
@@ -360,23 +368,24 @@ impl Shot {
         if spec.shutter <= 0.0 {
             return Ok(None);
         }
-        let plan = &self.prepared()?.plan;
+        let prep = self.prepared()?;
+        let (plan, direction) = (&prep.plan, &prep.direction);
         let t = plan.timeline().time(k as usize);
         let (centres, stratum) =
             render::integrator::motion_blur::strata(spec.shutter, time_samples, spec.fps);
         let samples = centres
             .into_iter()
             .map(|offset| {
-                let field = crate::animate::VelocityField::of_plan(plan, t + offset);
+                let field = direction.velocity(plan, t + offset);
                 render::TimeSample {
                     offset,
-                    blobs: plan.at(t + offset),
+                    blobs: direction.at(plan, t + offset),
                     velocity: field.motions().iter().map(|m| m.velocity).collect(),
                 }
             })
             .collect();
         let shutter = render::Shutter { samples, stratum };
-        Ok((!shutter.is_still(&plan.frame(k as usize))).then_some(shutter))
+        Ok((!shutter.is_still(&direction.frame(plan, k as usize))).then_some(shutter))
     }
 }
 
@@ -410,8 +419,9 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     })?;
     Ok(Prepared {
         model,
-        plan,
         bounds,
         origin,
+        direction: animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone()),
+        plan,
     })
 }

@@ -218,11 +218,8 @@ pub fn frame_inputs(
     let lists_vdb = on_disk.is_some_and(|m| m.files.iter().any(|f| f.kind == vdb.key()));
     let motions = if file.output.formats.contains(&Format::Vdb) || lists_vdb || film.motion {
         shot.prepared().ok().map(|prep| {
-            let plan = &prep.plan;
-            let t = plan.timeline().time(k as usize);
-            crate::animate::VelocityField::of_plan(plan, t)
-                .motions()
-                .to_vec()
+            let t = prep.plan.timeline().time(k as usize);
+            prep.direction.velocity(&prep.plan, t).motions().to_vec()
         })
     } else {
         None
