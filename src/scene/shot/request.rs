@@ -54,11 +54,10 @@ impl Shot {
         let shutter = self.shutter(k, settings.quality.time_samples)?;
         let file = &self.scene().file;
         let velocity = if file.output.motion_vectors {
-            let plan = &self.prepared()?.plan;
-            Some(VelocityField::of_plan(
-                plan,
-                plan.timeline().time(k as usize),
-            ))
+            // The direction's velocity: wind and retime included, as the VDB's `vel`.
+            let prep = self.prepared()?;
+            let t = prep.plan.timeline().time(k as usize);
+            Some(prep.direction.velocity(&prep.plan, t))
         } else {
             None
         };
