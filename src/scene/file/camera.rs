@@ -246,6 +246,7 @@ impl CameraKeyframes {
             look_at: hermite(&|c| c.look_at),
             up: Vec3::Y,
             fov_deg: fov,
+            shift: glam::Vec2::ZERO,
         }
     }
 }
@@ -271,6 +272,7 @@ pub fn camera_at(
                 look_at: c.look_at,
                 up: c.up,
                 fov_deg: c.fov_deg,
+                shift: glam::Vec2::ZERO,
             }
         }
         CameraSpec::Auto(c) => {
@@ -289,6 +291,7 @@ pub fn camera_at(
                 look_at: centre,
                 up: Vec3::Y,
                 fov_deg: c.fov_deg,
+                shift: glam::Vec2::ZERO,
             }
         }
     }
