@@ -238,6 +238,24 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         })?;
         c.file = full.to_string_lossy().into_owned();
     }
+    // So is a USD camera's every frame.
+    if let file::CameraSpec::Usd(c) = &mut file.camera {
+        let full = base.join(&c.file);
+        let frames = file.shot.start_frame..=file.shot.last_frame();
+        c.load(&full, frames, file.shot.fps).map_err(|e| {
+            let field = match e.field {
+                file::usd_read::Field::File => "camera.file",
+                file::usd_read::Field::Prim => "camera.prim",
+            };
+            SceneError::Invalid {
+                path: path.to_path_buf(),
+                field: field.into(),
+                message: e.message,
+            }
+            .located(text)
+        })?;
+        c.file = full.to_string_lossy().into_owned();
+    }
     if let crate::animate::Animation::Morph(m) = &mut file.animation {
         // A `from` that cannot be read is located at its path in the scene text.
         let located = |p: &str, e: SceneError| match e {
