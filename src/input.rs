@@ -19,6 +19,8 @@ pub enum Limit {
     Mesh,
     /// A fitted blob model (`.blobs.ron`, binary codecs): 256 MiB.
     Model,
+    /// A layer of a USD stage (a shot's tracked camera, `.usda`/`.usdc`/`.usdz`): 256 MiB.
+    Stage,
     /// Something nephele wrote itself and reads back (a manifest, a cache index): 16 MiB.
     Own,
     /// An image read as light (the sky's lat-long EXR): 1 GiB.
@@ -31,7 +33,7 @@ impl Limit {
         match self {
             Limit::Scene | Limit::Own => 16 << 20,
             Limit::Mesh => 2 << 30,
-            Limit::Model => 256 << 20,
+            Limit::Model | Limit::Stage => 256 << 20,
             Limit::Image => 1 << 30,
         }
     }
@@ -42,6 +44,7 @@ impl Limit {
             Limit::Scene => "a scene file",
             Limit::Mesh => "a mesh",
             Limit::Model => "a blob model",
+            Limit::Stage => "a USD layer",
             Limit::Own => "a file nephele wrote",
             Limit::Image => "an environment map (EXR)",
         }

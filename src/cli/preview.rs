@@ -201,6 +201,7 @@ fn turntable_settings(args: &Args, bounds: Aabb, length_scale: f32, k: u32) -> R
             look_at: center,
             up: Vec3::Y,
             fov_deg: FOV_DEG,
+            shift: glam::Vec2::ZERO,
         },
         sun: Sun {
             direction: right * 0.7 - up * 0.6 + forward * 0.3,

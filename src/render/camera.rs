@@ -1,12 +1,12 @@
 //! Pinhole camera rays and per-tile view frusta.
 //!
-//! In: [`Camera`] (look-at, vertical field of view) and the image size. Out: unit ray
+//! In: [`Camera`] (look-at, vertical field of view, an optional lens shift) and the image size. Out: unit ray
 //! directions through pixel positions (pixel `(x, y)` covers `[x, x+1) × [y, y+1)`, top row
 //! first, +Y up, right-handed: the camera looks down its −Z), and [`Frustum`]s bounding the
 //! rays of a tile, used to cull blobs once per tile; and the ray–ellipsoid intersection the
 //! media use.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 
 /// A pinhole camera in world space (the model's units), +Y up.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,6 +19,12 @@ pub struct Camera {
     pub up: Vec3,
     /// Vertical field of view in degrees.
     pub fov_deg: f32,
+    /// Lens shift: the image centre's offset from the view axis, in units of half the image
+    /// height on the image plane (`tan(fov/2)` at distance 1), +x right, +y up. Zero (every
+    /// camera but a USD one with aperture offsets) is the centred pinhole, bit for bit as
+    /// before the shift existed; a shifted window is an off-axis frustum (USD's
+    /// `horizontalApertureOffset`/`verticalApertureOffset`).
+    pub shift: Vec2,
 }
 
 /// A ray `origin + t·dir`, `dir` unit length.
@@ -66,8 +72,10 @@ pub(crate) fn ray_ellipsoid(local_origin: Vec3A, local_dir: Vec3A) -> Option<(f3
 pub struct CameraRays {
     /// Eye position.
     pub position: Vec3A,
-    /// Unit view direction.
+    /// Unit view direction (the optical axis).
     pub forward: Vec3A,
+    /// The ray through the image centre before normalising: `forward`, plus the lens shift.
+    axis: Vec3A,
     right: Vec3A,
     up: Vec3A,
     /// `tan(fov/2)`: half the image-plane height at distance 1.
@@ -90,12 +98,21 @@ impl CameraRays {
             .unwrap_or(Vec3A::X);
         let up = right.cross(forward);
         let fov = camera.fov_deg.clamp(0.1, 179.0).to_radians();
+        let tan_half = (0.5 * fov).tan();
+        // Only a shifted lens moves the axis: a zero shift keeps `forward` bit for bit (adding
+        // zero terms could turn a −0 component into +0, and with it a ray's reciprocal).
+        let axis = if camera.shift == Vec2::ZERO {
+            forward
+        } else {
+            forward + (right * camera.shift.x + up * camera.shift.y) * tan_half
+        };
         CameraRays {
             position,
             forward,
+            axis,
             right,
             up,
-            tan_half: (0.5 * fov).tan(),
+            tan_half,
             width: width.max(1) as f32,
             height: height.max(1) as f32,
         }
@@ -107,7 +124,7 @@ impl CameraRays {
     pub fn dir(&self, px: f32, py: f32) -> Vec3A {
         let sy = (1.0 - 2.0 * py / self.height) * self.tan_half;
         let sx = (2.0 * px / self.width - 1.0) * self.tan_half * self.width / self.height;
-        (self.forward + self.right * sx + self.up * sy).normalize()
+        (self.axis + self.right * sx + self.up * sy).normalize()
     }
 
     /// The ray through the centre of pixel `(x, y)`.
@@ -187,7 +204,7 @@ impl Frustum {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use glam::{Vec2, Vec3};
 
     #[test]
     fn ray_ellipsoid_cases() {
@@ -236,6 +253,7 @@ mod tests {
             look_at: Vec3::ZERO,
             up: Vec3::Y,
             fov_deg: 40.0,
+            shift: Vec2::ZERO,
         };
         let rays = CameraRays::new(&cam, 64, 36);
         assert!((rays.dir(32.0, 18.0) - Vec3A::NEG_Z).length() < 1e-6);
@@ -247,5 +265,27 @@ mod tests {
         assert!(f.may_contain_ball(rays.dir(8.0, 8.0) * 3.0 + rays.position, 0.01));
         assert!(!f.may_contain_ball(Vec3A::new(3.0, -3.0, 0.0), 0.1));
         assert!(!f.may_contain_ball(Vec3A::new(0.0, 0.0, 9.0), 0.5));
+    }
+
+    #[test]
+    fn a_lens_shift_moves_the_window_off_axis() {
+        let cam = Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::NEG_Z,
+            up: Vec3::Y,
+            fov_deg: 90.0,
+            shift: Vec2::new(0.5, -0.25),
+        };
+        let rays = CameraRays::new(&cam, 200, 100);
+        // The image centre is shifted by half of half the height right and a quarter down.
+        let c = rays.dir(100.0, 50.0);
+        assert!((c.x / -c.z - 0.5).abs() < 1e-6 && (c.y / -c.z + 0.25).abs() < 1e-6);
+        // The top edge is one half-height above the centre, the right edge one half-width.
+        let top = rays.dir(100.0, 0.0);
+        assert!((top.y / -top.z - 0.75).abs() < 1e-6);
+        let right = rays.dir(200.0, 50.0);
+        assert!((right.x / -right.z - 2.5).abs() < 1e-6);
+        // The optical axis (depth, culling) stays the view direction.
+        assert_eq!(rays.forward, Vec3A::NEG_Z);
     }
 }

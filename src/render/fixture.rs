@@ -67,6 +67,7 @@ pub(crate) fn settings(width: u32, height: u32, quality: Quality) -> RenderSetti
             look_at: Vec3::new(0.0, 0.1, 0.0),
             up: Vec3::Y,
             fov_deg: 38.0,
+            shift: glam::Vec2::ZERO,
         },
         sun: Sun::default(),
         sky: Sky::default(),

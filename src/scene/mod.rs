@@ -238,6 +238,24 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         })?;
         c.file = full.to_string_lossy().into_owned();
     }
+    // So is a USD camera's every frame.
+    if let file::CameraSpec::Usd(c) = &mut file.camera {
+        let full = base.join(&c.file);
+        let frames = file.shot.start_frame..=file.shot.last_frame();
+        c.load(&full, frames, file.shot.fps).map_err(|e| {
+            let field = match e.field {
+                file::usd_read::Field::File => "camera.file",
+                file::usd_read::Field::Prim => "camera.prim",
+            };
+            SceneError::Invalid {
+                path: path.to_path_buf(),
+                field: field.into(),
+                message: e.message,
+            }
+            .located(text)
+        })?;
+        c.file = full.to_string_lossy().into_owned();
+    }
     // The plate's light is read now: a missing or bad map is an error at `sky.file`.
     if let crate::render::Sky::Environment(env) = &mut file.sky {
         env.load(base).map_err(|message| {

@@ -56,6 +56,7 @@ fn settings() -> RenderSettings {
             look_at: Vec3::new(3.0, -1.0, 2.0),
             up: Vec3::Y,
             fov_deg: 35.0,
+            shift: glam::Vec2::ZERO,
         },
         sun: Sun::default(),
         sky: Sky::default(),

@@ -34,3 +34,4 @@ mod render;
 mod robustness;
 mod scene;
 mod sheets;
+mod usd_camera;

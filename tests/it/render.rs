@@ -180,6 +180,7 @@ fn thin_slab_single_scattering_matches_closed_form() {
         look_at: Vec3::ZERO,
         up: Vec3::Y,
         fov_deg: 60.0,
+        shift: glam::Vec2::ZERO,
     };
     s.sun = Sun {
         direction: Vec3::Z,

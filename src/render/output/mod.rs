@@ -120,8 +120,9 @@ pub fn fps_rational(fps: f64) -> (i32, u32) {
         .unwrap_or(((fps * 1000.0).round() as i32, 1000))
 }
 
-/// The camera of a frame as the renderer casts its rays: eye, orthonormal axes and the
-/// image-plane half extents at distance 1.
+/// The camera of a frame as the renderer casts its rays: eye, orthonormal axes, the
+/// image-plane half extents at distance 1 and the image centre's place on that plane (zero but
+/// for a shifted lens).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraFrame {
     /// Eye position.
@@ -136,6 +137,9 @@ pub struct CameraFrame {
     pub tan_half_h: f64,
     /// `tan` of half the vertical field of view.
     pub tan_half_v: f64,
+    /// The image centre on the plane at distance 1, along `right` and `up`: the lens shift
+    /// ([`crate::render::Camera::shift`]) in these units; `[0, 0]` for a centred camera.
+    pub center: [f64; 2],
 }
 
 impl CameraFrame {
@@ -151,14 +155,24 @@ impl CameraFrame {
             let d = glam::DVec3::from(Vec3::from(rays.dir(px, py)));
             d / d.dot(forward) - forward
         };
-        let (right_half, up_half) = (offset(w, 0.5 * h), offset(0.5 * w, 0.0));
+        let (right_edge, top_edge) = (offset(w, 0.5 * h), offset(0.5 * w, 0.0));
+        // A centred camera's edges are read as they always were (its centre is exactly zero);
+        // a shifted one's are measured from the image centre.
+        let centre = if camera.shift == glam::Vec2::ZERO {
+            glam::DVec3::ZERO
+        } else {
+            offset(0.5 * w, 0.5 * h)
+        };
+        let (right_half, up_half) = (right_edge - centre, top_edge - centre);
+        let (right, up) = (right_half.normalize(), up_half.normalize());
         CameraFrame {
             eye: glam::DVec3::from(Vec3::from(rays.position)),
-            right: right_half.normalize(),
-            up: up_half.normalize(),
+            right,
+            up,
             forward,
             tan_half_h: right_half.length(),
             tan_half_v: up_half.length(),
+            center: [centre.dot(right), centre.dot(up)],
         }
     }
 
@@ -172,12 +186,16 @@ impl CameraFrame {
             view[12 + col] = -self.eye.dot(axis);
         }
         view[15] = 1.0;
-        // Camera → homogeneous NDC: X = x·a + z/2, Y = −y·b + z/2, Z = 1, W = z.
+        // Camera → homogeneous NDC: X = x·a + z·(1/2 − cx·a), Y = −y·b + z·(1/2 + cy·b),
+        // Z = 1, W = z, where (cx, cy) is the image centre (zero for a centred camera, so the
+        // terms are exactly 1/2).
         let (a, b) = (0.5 / self.tan_half_h, 0.5 / self.tan_half_v);
+        let [cx, cy] = self.center;
+        let (sx, sy) = (0.5 - cx * a, 0.5 + cy * b);
         let proj = [
             a, 0.0, 0.0, 0.0, //
             0.0, -b, 0.0, 0.0, //
-            0.5, 0.5, 0.0, 1.0, //
+            sx, sy, 0.0, 1.0, //
             0.0, 0.0, 1.0, 0.0,
         ];
         let mut ndc = [0.0; 16];

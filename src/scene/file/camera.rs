@@ -12,6 +12,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::chan::ChanCamera;
+use super::usd_camera::UsdCamera;
 use crate::geometry::Aabb;
 use crate::render::{Camera, InvalidField};
 
@@ -28,6 +29,9 @@ pub enum CameraSpec {
     /// The shot's tracked camera from a Nuke `.chan` file, one line per frame
     /// ([`super::chan`]).
     Chan(ChanCamera),
+    /// The shot's tracked camera from a USD stage's `Camera` prim, by frame number
+    /// ([`super::usd_camera`]).
+    Usd(UsdCamera),
 }
 
 impl Default for CameraSpec {
@@ -144,6 +148,23 @@ impl CameraSpec {
                     ));
                 }
             }
+            CameraSpec::Usd(c) => {
+                if c.file.trim().is_empty() {
+                    return Err(InvalidField::new(
+                        "camera.file",
+                        "name the USD file (relative to the scene file's folder)".to_string(),
+                    ));
+                }
+                if !c.prim.starts_with('/') {
+                    return Err(InvalidField::new(
+                        "camera.prim",
+                        format!(
+                            "must be the camera prim's absolute path (\"/World/cam\"), got {:?}",
+                            c.prim
+                        ),
+                    ));
+                }
+            }
         }
         Ok(())
     }
@@ -246,6 +267,7 @@ impl CameraKeyframes {
             look_at: hermite(&|c| c.look_at),
             up: Vec3::Y,
             fov_deg: fov,
+            shift: glam::Vec2::ZERO,
         }
     }
 }
@@ -264,6 +286,7 @@ pub fn camera_at(
     match spec {
         CameraSpec::Keyframes(k) => k.at(t),
         CameraSpec::Chan(c) => c.at(frame as i64),
+        CameraSpec::Usd(c) => c.at(frame, aspect, bounds),
         CameraSpec::Fixed(c) => {
             let eye = orbit(c.position, c.look_at, c.orbit_deg * u as f32);
             Camera {
@@ -271,6 +294,7 @@ pub fn camera_at(
                 look_at: c.look_at,
                 up: c.up,
                 fov_deg: c.fov_deg,
+                shift: glam::Vec2::ZERO,
             }
         }
         CameraSpec::Auto(c) => {
@@ -289,6 +313,7 @@ pub fn camera_at(
                 look_at: centre,
                 up: Vec3::Y,
                 fov_deg: c.fov_deg,
+                shift: glam::Vec2::ZERO,
             }
         }
     }

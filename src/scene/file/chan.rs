@@ -106,6 +106,7 @@ impl ChanCamera {
             look_at: key.translate + r * Vec3::NEG_Z,
             up: r * Vec3::Y,
             fov_deg: key.vfov_deg.unwrap_or(self.fov_deg),
+            shift: glam::Vec2::ZERO,
         }
     }
 

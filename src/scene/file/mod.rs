@@ -10,6 +10,9 @@ pub mod camera;
 pub mod chan;
 pub mod locate;
 pub mod transform;
+pub mod usd_camera;
+pub mod usd_read;
+pub mod usda_text;
 
 use std::path::Path;
 

@@ -217,12 +217,18 @@ impl Canonical for Camera {
             look_at,
             up,
             fov_deg,
+            shift,
         } = self;
         e.str("Camera")
             .put(position)
             .put(look_at)
             .put(up)
             .put(fov_deg);
+        // Only a shifted lens adds to the encoding, so every unshifted camera (all of them
+        // before the shift existed) keeps its hash.
+        if *shift != glam::Vec2::ZERO {
+            e.str("shift").put(&shift.x).put(&shift.y);
+        }
     }
 }
 

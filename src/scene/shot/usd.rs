@@ -9,8 +9,9 @@
 //! row is the translation). The camera looks down its local −Z with +Y up, as nephele's does;
 //! its lens uses the schema's tenths-of-a-unit convention with a 24-unit vertical aperture:
 //! `focalLength = 12 / tan(fov_v/2)`, `horizontalAperture = 2·focalLength·tan(fov_h/2)`, both
-//! half-angles read off the renderer's own rays. A `DistantLight` shines down its local −Z, so
-//! the sun's rotation takes −Z to the direction sunlight travels.
+//! half-angles read off the renderer's own rays; a shifted lens adds the aperture offsets
+//! `focalLength·c` of its image centre `c` on the plane at distance 1. A `DistantLight` shines
+//! down its local −Z, so the sun's rotation takes −Z to the direction sunlight travels.
 
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
@@ -215,6 +216,21 @@ fn camera(s: &mut String, stage: &Stage) {
         "        float verticalAperture = {}",
         num(VERTICAL_APERTURE)
     );
+    // A shifted lens (a camera read from USD with aperture offsets) keeps its offsets; a
+    // centred one writes none, as before.
+    let [cx, cy] = first.map_or([0.0; 2], |c| c.center);
+    if [cx, cy] != [0.0; 2] {
+        let _ = writeln!(
+            s,
+            "        float horizontalApertureOffset = {}",
+            num(focal * cx)
+        );
+        let _ = writeln!(
+            s,
+            "        float verticalApertureOffset = {}",
+            num(focal * cy)
+        );
+    }
     let [near, far] = stage.clipping;
     let _ = writeln!(
         s,

@@ -57,6 +57,7 @@ fn settings(time_samples: u32) -> RenderSettings {
             look_at: Vec3::ZERO,
             up: Vec3::Y,
             fov_deg: 40.0,
+            shift: glam::Vec2::ZERO,
         },
         sun: Sun::default(),
         sky: Sky::default(),

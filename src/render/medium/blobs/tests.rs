@@ -18,6 +18,7 @@ fn tiny_settings(length_scale: f32) -> RenderSettings {
             look_at: glam::Vec3::ZERO,
             up: glam::Vec3::Y,
             fov_deg: 40.0,
+            shift: glam::Vec2::ZERO,
         },
         sun: Sun::default(),
         sky: Sky::default(),
