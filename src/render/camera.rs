@@ -160,6 +160,13 @@ pub struct Frustum {
 }
 
 impl Frustum {
+    /// The frustum that may contain everything (rays of any direction: shadow rays).
+    pub const EVERYTHING: Frustum = Frustum {
+        apex: Vec3A::ZERO,
+        forward: Vec3A::ZERO,
+        planes: [Vec3A::ZERO; 4],
+    };
+
     /// Conservative: false only when the ball `(center, radius)` is certainly outside.
     #[inline]
     pub fn may_contain_ball(&self, center: Vec3A, radius: f32) -> bool {

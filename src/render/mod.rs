@@ -85,6 +85,7 @@ pub(crate) mod memory;
 pub mod output;
 pub(crate) mod sampler;
 pub(crate) mod settings;
+pub(crate) mod surfaces;
 
 // The front. Rendering a frame of blobs (and the reference march that checks it):
 pub use counters::work_counts;
@@ -111,6 +112,8 @@ pub use light::sky_dome::SkyDome;
 pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
 pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
+// The shot's opaque surfaces (holdouts, the ground plane):
+pub use surfaces::{Ground, HoldoutMesh, Surfaces};
 
 // The light grid's floor, for the blob medium's tests.
 #[cfg(test)]

@@ -66,6 +66,7 @@ fn settings() -> RenderSettings {
         time: 0.0,
         quality: Quality::final_frame(),
         base: None,
+        surfaces: None,
     }
 }
 
@@ -413,6 +414,8 @@ fn exr_bytes_are_identical_across_encodings() {
         depth: vec![3.0; 8],
         passes: None,
         mattes: None,
+        holdout: None,
+        shadow: None,
         region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]

@@ -33,3 +33,4 @@ mod render;
 mod robustness;
 mod scene;
 mod sheets;
+mod surfaces;

@@ -27,6 +27,10 @@ struct Band<'a> {
     passes: Option<PassRows<'a>>,
     /// The ID-matte ranks, when it asks for mattes.
     ranks: Option<&'a mut [[Rank; RANKS]]>,
+    /// The `holdout` layer's rows, when the shot has holdouts.
+    holdout: Option<&'a mut [f32]>,
+    /// The `shadow` layer's rows, with the shadow pass.
+    shadow: Option<&'a mut [f32]>,
 }
 
 /// One band's rows of the frame's render passes ([`crate::render::Passes`]).
@@ -48,6 +52,12 @@ impl Band<'_> {
             rows.sky[i] = p.passes.sky.to_array();
             rows.multiple[i] = p.passes.multiple.to_array();
         }
+        if let Some(h) = &mut self.holdout {
+            h[i] = p.holdout;
+        }
+        if let Some(s) = &mut self.shadow {
+            s[i] = p.shadow;
+        }
     }
 }
 
@@ -62,7 +72,7 @@ pub(crate) fn render_film<S: Send>(
     film: &Film,
     cam: &CameraRays,
     scratch: impl Fn() -> S + Sync + Send,
-    begin_tile: impl Fn(&mut S, &Frustum) + Sync + Send,
+    begin_tile: impl Fn(&mut S, &Frustum, &Region) + Sync + Send,
     pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>) -> (PixelResult, u32) + Sync + Send,
 ) -> Frame {
     let (w, h) = (settings.width, settings.height);
@@ -82,6 +92,16 @@ pub(crate) fn render_film<S: Send>(
             .mattes
             .as_ref()
             .map(|m| Box::new(IdMattes::empty(m, n))),
+        holdout: settings
+            .surfaces
+            .as_ref()
+            .is_some_and(|s| s.has_holdouts())
+            .then(|| vec![0.0; n]),
+        shadow: settings
+            .surfaces
+            .as_ref()
+            .is_some_and(|s| s.shadow_pass())
+            .then(|| vec![1.0; n]),
         region: film.region,
     };
     let band_px = (w * TILE) as usize;
@@ -92,8 +112,12 @@ pub(crate) fn render_film<S: Send>(
         depth,
         passes,
         mattes,
+        holdout,
+        shadow,
         ..
     } = &mut frame;
+    let holdout = optional_rows(holdout, band_px, bands);
+    let shadow = optional_rows(shadow, band_px, bands);
     let passes: Vec<Option<PassRows>> = match passes {
         Some(p) => {
             let crate::render::Passes { sun, sky, multiple } = &mut **p;
@@ -114,15 +138,20 @@ pub(crate) fn render_film<S: Send>(
         .zip(alpha.chunks_mut(band_px))
         .zip(depth.chunks_mut(band_px))
         .zip(passes.into_iter().zip(ranks))
+        .zip(holdout.into_iter().zip(shadow))
         .enumerate()
-        .map(|(k, (((rgb, alpha), depth), (passes, ranks)))| Band {
-            y0: k as u32 * TILE,
-            rgb,
-            alpha,
-            depth,
-            passes,
-            ranks,
-        })
+        .map(
+            |(k, ((((rgb, alpha), depth), (passes, ranks)), (holdout, shadow)))| Band {
+                y0: k as u32 * TILE,
+                rgb,
+                alpha,
+                depth,
+                passes,
+                ranks,
+                holdout,
+                shadow,
+            },
+        )
         .collect();
     let tx = w.div_ceil(TILE);
     bands
@@ -142,6 +171,7 @@ pub(crate) fn render_film<S: Send>(
                 begin_tile(
                     scratch,
                     &cam.frustum(whole.x0, whole.y0, whole.x1, whole.y1),
+                    &whole,
                 );
                 for y in part.y0..part.y1 {
                     for x in part.x0..part.x1 {
@@ -157,4 +187,16 @@ pub(crate) fn render_film<S: Send>(
             }
         });
     frame
+}
+
+/// The bands' rows of an optional one-channel layer (`None` per band without it).
+fn optional_rows(
+    v: &mut Option<Vec<f32>>,
+    band_px: usize,
+    bands: usize,
+) -> Vec<Option<&mut [f32]>> {
+    match v {
+        Some(v) => v.chunks_mut(band_px).map(Some).collect(),
+        None => (0..bands).map(|_| None).collect(),
+    }
 }

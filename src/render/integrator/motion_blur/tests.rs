@@ -77,6 +77,7 @@ fn settings(time_samples: u32) -> RenderSettings {
             ..Quality::final_frame()
         },
         base: None,
+        surfaces: None,
     }
 }
 
@@ -130,6 +131,8 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         depth: Vec::new(),
         passes: None,
         mattes: None,
+        holdout: None,
+        shadow: None,
         region: None,
     };
     for offset in &centres {
