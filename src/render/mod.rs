@@ -72,6 +72,7 @@ mod bench;
 /// while it does not). Frames of another render version are re-rendered on resume.
 pub const RENDER_VERSION: u32 = 3;
 
+pub(crate) mod bvh;
 pub(crate) mod camera;
 pub(crate) mod counters;
 pub(crate) mod fast_exp;

@@ -4,13 +4,13 @@
 //!
 //! In: the holdouts' triangles (already placed in the shot) and the ground's height. Out: ray
 //! casts through one BVH per role ([`Surfaces::holdout_hit`], the camera's; the shadow casters'
-//! for the light grid, [`Surfaces::caster_hit`]), never a loop over the triangles: parry's
-//! `TriMesh` (its quad-tree BVH) in `f64`.
+//! for the light grid, [`Surfaces::caster_hit`]), never a loop over the triangles
+//! ([`crate::render::bvh`]).
 //!
 //! What the integrator does with them (`integrator/surface_rays.rs`): a camera ray's march stops
 //! at its holdout hit (the cloud in front is kept; the holdout adds nothing: colour and alpha 0
-//! behind it; no sky light straight through); a pixel whose corners and centre disagree on the
-//! holdout traces more rays (its edge anti-aliased); the `holdout` layer is the fraction of a
+//! behind it; no sky light straight through); a pixel whose corners disagree on the holdout
+//! traces more rays (its edge anti-aliased); the `holdout` layer is the fraction of a
 //! pixel's rays that hit one. With the shadow pass, the nearest surface a ray sees (a holdout
 //! or the ground plane) gets one shadow ray toward the sun through the medium. Holdouts with
 //! `shadows` are baked into the light grid (`light/grid.rs`): a node they hide from the sun or
@@ -19,9 +19,8 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3A};
-use parry3d_f64::query::{Ray as ParryRay, RayCast};
-use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
+use crate::render::bvh::TriangleBvh;
 use crate::render::camera::{Frustum, Ray};
 
 /// One holdout's triangles in the shot's coordinates, and whether it shadows the cloud.
@@ -45,7 +44,7 @@ pub struct Ground {
 /// A BVH over triangles and the ball that bounds them (the tile cull).
 #[derive(Clone)]
 struct Bvh {
-    mesh: Arc<TriMesh>,
+    mesh: Arc<TriangleBvh>,
     center: Vec3A,
     radius: f32,
 }
@@ -60,8 +59,7 @@ impl Bvh {
             lo = lo.min(*p);
             hi = hi.max(*p);
         }
-        let mesh = TriMesh::with_flags(positions, triangles, TriMeshFlags::empty())
-            .map_err(|e| format!("cannot index its triangles: {e}"))?;
+        let mesh = TriangleBvh::new(&positions, &triangles);
         let center = 0.5 * (lo + hi);
         Ok(Some(Bvh {
             mesh: Arc::new(mesh),
@@ -80,10 +78,7 @@ impl Bvh {
         if c > 0.0 && (b > 0.0 || b * b < c) {
             return None;
         }
-        let ray = ParryRay::new(origin.as_dvec3(), dir.as_dvec3());
-        self.mesh
-            .cast_local_ray(&ray, max as f64, false)
-            .map(|t| t as f32)
+        self.mesh.hit(origin, dir, max)
     }
 }
 
@@ -106,11 +101,11 @@ impl std::fmt::Debug for Surfaces {
             .field("key", &self.key)
             .field(
                 "holdout_triangles",
-                &self.camera.as_ref().map_or(0, |b| b.mesh.num_triangles()),
+                &self.camera.as_ref().map_or(0, |b| b.mesh.len()),
             )
             .field(
                 "caster_triangles",
-                &self.casters.as_ref().map_or(0, |b| b.mesh.num_triangles()),
+                &self.casters.as_ref().map_or(0, |b| b.mesh.len()),
             )
             .field("ground", &self.ground)
             .field("shadow_pass", &self.shadow_pass)

@@ -542,17 +542,28 @@ fn holdout_cost() {
         t2 / t0
     );
     let (plain, f, g) = frames.unwrap();
-    let held_px = f
-        .holdout
-        .as_ref()
-        .unwrap()
-        .iter()
-        .filter(|&&h| h > 0.0)
-        .count();
-    let same = (0..f.alpha.len())
-        .filter(|&i| f.holdout.as_ref().unwrap()[i] == 0.0)
-        .all(|i| f.rgb[i] == plain.rgb[i] && f.alpha[i] == plain.alpha[i]);
-    eprintln!("{held_px} pixels touched by the holdout; the others bit-identical: {same}");
+    let layer = f.holdout.as_ref().unwrap();
+    let held_px = layer.iter().filter(|&&h| h > 0.0).count();
+    // A pixel no ray of which hit a holdout differs only beside one that did (its corners saw
+    // the holdout: it traced the edge's rays).
+    let (w, h) = (f.width as i64, f.height as i64);
+    let near_holdout = |i: usize| {
+        let (x, y) = (i as i64 % w, i as i64 / w);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (u, v) = (x + dx, y + dy);
+                u >= 0 && v >= 0 && u < w && v < h && layer[(v * w + u) as usize] > 0.0
+            })
+        })
+    };
+    let differ: Vec<usize> = (0..f.alpha.len())
+        .filter(|&i| layer[i] == 0.0 && (f.rgb[i] != plain.rgb[i] || f.alpha[i] != plain.alpha[i]))
+        .collect();
+    let same = differ.iter().all(|&i| near_holdout(i));
+    eprintln!(
+        "{held_px} pixels touched by the holdout; of the others {} differ, all beside it: {same}",
+        differ.len()
+    );
     let out = std::env::var("NEPHELE_SURFACES_OUT")
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|_| dir.to_path_buf());

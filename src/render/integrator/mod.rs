@@ -47,7 +47,7 @@ pub(crate) use tiles::render_film;
 use glam::Vec3A;
 
 use crate::render::camera::Frustum;
-use surface_rays::{HOLDOUT_EDGE_RAYS, TileHoldouts};
+use surface_rays::{Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
 
 use crate::render::Frame;
 use crate::render::camera::CameraRays;
@@ -144,10 +144,17 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                 shadow,
                 tile,
             } = scratch;
-            let tile = &*tile;
+            let corners = tile.pixel(x, y);
+            // Covered where no cloud can be and no shadow is asked for: where the ray stops
+            // does not matter, only that it does.
+            let blind = corners == Corners::All && shadow.is_none() && medium.tile_is_empty(march);
             let mut ray = |k: u32, grid: (u32, u32)| {
                 let (ray, jitter) = pixel_sample(&cam, (x, y), k, grid, &mut rng);
-                let t_hold = tile.stop(surfaces, &ray);
+                let t_hold = if blind {
+                    f32::MAX
+                } else {
+                    surface_rays::stop(surfaces, corners, &ray)
+                };
                 let mut r = trace(
                     medium,
                     lights,
@@ -173,7 +180,7 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
             } else {
                 let first = ray(0, (1, 1));
                 // A holdout's edge through the pixel: more rays, whatever the cloud does.
-                let held = tile.at_edge(x, y, first.holdout > 0.0);
+                let held = corners == Corners::Some;
                 if !held && (edge <= 1 || !at_edge(&first)) {
                     return (first, 1);
                 }

@@ -34,7 +34,7 @@ use rand::RngExt;
 use crate::blobby::Blob;
 use crate::render::Frame;
 use crate::render::camera::{CameraRays, Frustum, Ray};
-use crate::render::integrator::surface_rays::{self, HOLDOUT_EDGE_RAYS, TileHoldouts};
+use crate::render::integrator::surface_rays::{self, Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
 use crate::render::integrator::{PixelSum, pixel_sample, render_film, shaded_march};
 use crate::render::light::grid::LightGrid;
 use crate::render::light::shading::Shading;
@@ -311,17 +311,15 @@ pub(crate) fn render_slices(
                 scratch.rays.push(ray);
             }
             let mut rays = rays;
+            let corners = scratch.tile.pixel(x, y);
             // One position a pixel: a holdout's edge through it spreads its rays over it.
-            if samples == 1 {
-                let centre = scratch.tile.stop(surfaces, &scratch.rays[0].0).is_finite();
-                if scratch.tile.at_edge(x, y, centre) {
-                    rays = rays.max(HOLDOUT_EDGE_RAYS + 1);
-                    let grid = (rays, (rays as f32).sqrt().ceil() as u32);
-                    scratch.rays.clear();
-                    for k in 0..rays {
-                        let ray = pixel_sample(&cam, (x, y), k, grid, &mut rng);
-                        scratch.rays.push(ray);
-                    }
+            if samples == 1 && corners == Corners::Some {
+                rays = rays.max(HOLDOUT_EDGE_RAYS + 1);
+                let grid = (rays, (rays as f32).sqrt().ceil() as u32);
+                scratch.rays.clear();
+                for k in 0..rays {
+                    let ray = pixel_sample(&cam, (x, y), k, grid, &mut rng);
+                    scratch.rays.push(ray);
                 }
             }
             let rotation = time.random_range(0..strata);
@@ -333,7 +331,7 @@ pub(crate) fn render_slices(
                 let (m, s) = (&slices[j], &mut scratch.media[j]);
                 m.set_time_offset(s, dt);
                 let lights = &lights[j.min(lights.len() - 1)];
-                let t_hold = scratch.tile.stop(surfaces, &ray);
+                let t_hold = surface_rays::stop(surfaces, corners, &ray);
                 let mut r = trace(
                     m,
                     lights,

@@ -1,7 +1,7 @@
 //! What the camera's rays ask of the shot's surfaces ([`crate::render::Surfaces`]): where a ray
-//! stops at a holdout ([`TileHoldouts::stop`]), whether a pixel lies on a holdout's edge (its
-//! corners and centre disagree: [`TileHoldouts::at_edge`]; it then traces
-//! [`HOLDOUT_EDGE_RAYS`] more rays), and the shadow pass's value for a ray ([`shadow`]).
+//! stops at a holdout ([`stop`]), whether a pixel lies on a holdout's edge (its corners
+//! disagree: [`TileHoldouts::pixel`]; it then traces [`HOLDOUT_EDGE_RAYS`] more rays), and the
+//! shadow pass's value for a ray ([`shadow`]).
 //!
 //! A tile whose frustum misses every holdout's bounding ball casts nothing: its pixels are
 //! marched exactly as without holdouts (the same bits). Inside an active tile the pixel
@@ -18,6 +18,18 @@ use crate::render::surfaces::Surfaces;
 /// More rays a pixel on a holdout's edge traces (stratified inside it, besides its first) when
 /// the quality gives a pixel one ray: its coverage then comes in ninths.
 pub(crate) const HOLDOUT_EDGE_RAYS: u32 = 8;
+
+/// What a pixel's corners see of the holdouts ([`TileHoldouts::pixel`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Corners {
+    /// No corner sees a holdout: the pixel is marched as without holdouts (no ray cast; a
+    /// holdout thinner than the pixel between its corners is not seen).
+    None,
+    /// Every corner sees one: its rays stop at their casts.
+    All,
+    /// Some do: the holdout's edge crosses the pixel (more rays, each cast).
+    Some,
+}
 
 /// One tile's view of the holdouts: whether any may be inside it, and its pixel corners' hits.
 #[derive(Clone, Debug, Default)]
@@ -53,29 +65,39 @@ impl TileHoldouts {
                 self.corners.push(hit.is_finite());
             }
         }
-    }
-
-    /// Where `ray` stops: its holdout hit, infinity when it meets none (or the tile has none).
-    #[inline]
-    pub(crate) fn stop(&self, surfaces: Option<&Surfaces>, ray: &Ray) -> f32 {
-        match surfaces {
-            Some(s) if self.active => s.holdout_hit(ray),
-            _ => f32::INFINITY,
+        if !self.corners.iter().any(|&c| c) {
+            // No corner of the tile sees a holdout: none of its pixels is touched.
+            self.active = false;
         }
     }
 
-    /// Whether pixel `(x, y)`, whose centre ray hit a holdout or not (`centre`), lies on a
-    /// holdout's edge: its four corners and its centre do not all agree.
+    /// What pixel `(x, y)`'s four corners see.
     #[inline]
-    pub(crate) fn at_edge(&self, x: u32, y: u32, centre: bool) -> bool {
+    pub(crate) fn pixel(&self, x: u32, y: u32) -> Corners {
         if !self.active {
-            return false;
+            return Corners::None;
         }
         let i = (y - self.y0) as usize * self.stride + (x - self.x0) as usize;
         let c = &self.corners;
-        [c[i], c[i + 1], c[i + self.stride], c[i + self.stride + 1]]
+        let hits = [c[i], c[i + 1], c[i + self.stride], c[i + self.stride + 1]]
             .iter()
-            .any(|&h| h != centre)
+            .filter(|&&h| h)
+            .count();
+        match hits {
+            0 => Corners::None,
+            4 => Corners::All,
+            _ => Corners::Some,
+        }
+    }
+}
+
+/// Where a ray of a pixel whose corners see `corners` stops: its holdout hit, infinity when it
+/// meets none (no cast where no corner sees a holdout).
+#[inline]
+pub(crate) fn stop(surfaces: Option<&Surfaces>, corners: Corners, ray: &Ray) -> f32 {
+    match surfaces {
+        Some(s) if corners != Corners::None => s.holdout_hit(ray),
+        _ => f32::INFINITY,
     }
 }
 
