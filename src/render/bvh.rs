@@ -188,6 +188,10 @@ fn slab(n: &Node, origin: Vec3A, inv: Vec3A, max: f32) -> Option<f32> {
     (near <= far).then_some(near)
 }
 
+/// Slack of the barycentric bounds: a ray through the edge two triangles share hits one of
+/// them (no crack between them to see through).
+const EDGE_SLACK: f32 = 1e-5;
+
 /// Möller–Trumbore: the ray's distance to the triangle if in `(0, max)`.
 #[inline]
 fn intersect(tri: &Tri, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
@@ -199,12 +203,12 @@ fn intersect(tri: &Tri, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
     let inv = 1.0 / det;
     let s = origin - tri.v0;
     let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
+    if !(-EDGE_SLACK..=1.0 + EDGE_SLACK).contains(&u) {
         return None;
     }
     let q = s.cross(tri.e1);
     let v = dir.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
+    if v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK {
         return None;
     }
     let t = tri.e2.dot(q) * inv;

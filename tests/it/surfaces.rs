@@ -486,7 +486,7 @@ fn holdout_cost() {
             let z = c.z - span + 2.0 * span * j as f64 / (n - 1) as f64;
             let r2 = ((x - hill.x).powi(2) + (z - hill.z).powi(2)) / (0.25 * span).powi(2);
             let y = lo.y - 0.35 * size.y
-                + 0.75 * size.y * (-r2).exp()
+                + 1.1 * size.y * (-r2).exp()
                 + 0.02 * size.y * (7.0 * x / span).sin() * (5.0 * z / span).cos();
             positions.push(DVec3::new(x, y, z));
         }
@@ -583,5 +583,22 @@ fn holdout_cost() {
     gray(g.holdout.as_ref().unwrap())
         .save(out.join("holdout.png"))
         .unwrap();
+    // A mock comp to look at: the cloud over a "plate" of brown ground (multiplied by the
+    // shadow pass) where the holdout is and a flat sky elsewhere.
+    let (hl, sh) = (g.holdout.as_ref().unwrap(), g.shadow.as_ref().unwrap());
+    image::RgbImage::from_fn(g.width, g.height, |x, y| {
+        let i = (y * g.width + x) as usize;
+        let ground = [0.35f32, 0.25, 0.15].map(|c| c * sh[i]);
+        let sky = [0.36f32, 0.5, 0.72];
+        let px: [u8; 3] = std::array::from_fn(|c| {
+            let bg = hl[i] * ground[c] + (1.0 - hl[i]) * sky[c];
+            let v = 0.25 * g.rgb[i][c] + (1.0 - g.alpha[i]) * bg;
+            let v = v / (1.0 + v);
+            (v.powf(1.0 / 2.2) * 255.0).round() as u8
+        });
+        image::Rgb(px)
+    })
+    .save(out.join("comp.png"))
+    .unwrap();
     assert!(same && held_px > 0);
 }
