@@ -235,6 +235,63 @@ fn a_shadowing_holdout_darkens_the_cloud_through_the_light_grid() {
     assert!(dark < 0.5 * lit, "{dark} vs {lit}");
 }
 
+/// A blurred frame (open shutter, the cloud moving) is held out alike: alpha exactly 0 where
+/// the wall covers the pixel, the edge anti-aliased by its spread rays.
+#[test]
+fn a_holdout_hides_the_cloud_in_a_blurred_frame() {
+    use nephele::render::{Shutter, TimeSample};
+    let (z, xs) = (3.5, (-10.0, 3.13));
+    let s = settings(Some(
+        Surfaces::new(7, vec![wall(z, xs.0, xs.1)], None, false).unwrap(),
+    ));
+    let blobs = cloud();
+    let v = DVec3::new(2.0, 0.0, 0.0);
+    let stratum = 0.5 / 24.0 / 4.0;
+    let samples = (0..4)
+        .map(|j| {
+            let offset = -0.25 / 24.0 + (j as f64 + 0.5) * stratum;
+            TimeSample {
+                offset,
+                blobs: blobs
+                    .iter()
+                    .map(|b| Blob {
+                        center: b.center + v * offset,
+                        ..*b
+                    })
+                    .collect(),
+                velocity: vec![v; blobs.len()],
+            }
+        })
+        .collect();
+    let shutter = Shutter { samples, stratum };
+    let options = FrameOptions {
+        shutter: Some(&shutter),
+        ..FrameOptions::default()
+    };
+    let (f, report) = FrameRenderer::render_once(&s, &blobs, &options);
+    assert!(report.blur.is_some(), "the frame is blurred");
+    let layer = f.holdout.as_ref().unwrap();
+    let (mut covered, mut edge) = (0, 0);
+    for y in 0..s.height {
+        for x in 0..s.width {
+            let i = (y * s.width + x) as usize;
+            match wall_hits(&s, (x, y), z as f32, (xs.0 as f32, xs.1 as f32)) {
+                5 => {
+                    covered += 1;
+                    assert_eq!(f.alpha[i], 0.0, "pixel {x},{y}");
+                    assert_eq!(layer[i], 1.0);
+                }
+                0 => assert_eq!(layer[i], 0.0),
+                _ => edge += (layer[i] > 0.0 && layer[i] < 1.0) as usize,
+            }
+        }
+    }
+    assert!(
+        covered > 1500 && edge > 30,
+        "{covered} covered, {edge} edge"
+    );
+}
+
 /// The ground's shadow pass against an independent march through the frame's VDB: every
 /// pixel that sees the ground, within 0.02 of the sun's transmittance OpenVDB's grid gives
 /// from the same point.
