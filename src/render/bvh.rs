@@ -75,6 +75,19 @@ impl TriangleBvh {
     /// The nearest hit's distance `t ∈ (0, max]` along `origin + t·dir`.
     #[inline]
     pub(crate) fn hit(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
+        self.traverse::<false>(origin, dir, max)
+    }
+
+    /// Whether any triangle lies on `origin + t·dir`, `t ∈ (0, max)` (the first hit found
+    /// ends the search: shadow rays).
+    #[inline]
+    pub(crate) fn occluded(&self, origin: Vec3A, dir: Vec3A, max: f32) -> bool {
+        self.traverse::<true>(origin, dir, max).is_some()
+    }
+
+    /// The nearest hit, or with `ANY` the first found.
+    #[inline]
+    fn traverse<const ANY: bool>(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -90,6 +103,9 @@ impl TriangleBvh {
                 let first = n.index as usize;
                 for tri in &self.tris[first..first + n.count as usize] {
                     if let Some(t) = intersect(tri, origin, dir, best) {
+                        if ANY {
+                            return Some(t);
+                        }
                         best = t;
                         found = true;
                     }
@@ -258,6 +274,7 @@ mod tests {
                 .min_by(f32::total_cmp);
             let got = bvh.hit(origin, dir, f32::MAX);
             assert_eq!(got, brute);
+            assert_eq!(bvh.occluded(origin, dir, f32::MAX), brute.is_some());
             hits += got.is_some() as usize;
             rays += 1;
         }

@@ -80,6 +80,18 @@ impl Bvh {
         }
         self.mesh.hit(origin, dir, max)
     }
+
+    /// Whether any triangle lies on the ray within `max` (the ball first, as [`Bvh::hit`]).
+    #[inline]
+    fn occluded(&self, origin: Vec3A, dir: Vec3A, max: f32) -> bool {
+        let oc = origin - self.center;
+        let b = oc.dot(dir);
+        let c = oc.length_squared() - self.radius * self.radius;
+        if c > 0.0 && (b > 0.0 || b * b < c) {
+            return false;
+        }
+        self.mesh.occluded(origin, dir, max)
+    }
 }
 
 /// The shot's holdouts and ground plane (see the module doc). Two are equal when their `key`
@@ -227,6 +239,14 @@ impl Surfaces {
         self.casters.as_ref().and_then(|b| b.hit(origin, dir, max))
     }
 
+    /// Whether a shadow-casting holdout lies on the way from `origin` along unit `dir`.
+    #[inline]
+    pub(crate) fn caster_occludes(&self, origin: Vec3A, dir: Vec3A) -> bool {
+        self.casters
+            .as_ref()
+            .is_some_and(|b| b.occluded(origin, dir, f32::MAX))
+    }
+
     /// Whether any holdout lies on the way from `origin` along unit `dir` (a shadow ray
     /// toward the sun from a surface point: where the plate's own geometry shadows it, the
     /// cloud's shadow darkens nothing more).
@@ -234,6 +254,6 @@ impl Surfaces {
     pub(crate) fn any_holdout_on(&self, origin: Vec3A, dir: Vec3A) -> bool {
         self.camera
             .as_ref()
-            .is_some_and(|b| b.hit(origin, dir, f32::MAX).is_some())
+            .is_some_and(|b| b.occluded(origin, dir, f32::MAX))
     }
 }

@@ -278,7 +278,7 @@ pub(crate) fn block_sky(shape: &GridShape, coarse: &[f32], surfaces: &Surfaces, 
             }
             let x = shape.node(i, j, k);
             for (c, d) in out.iter_mut().zip(dirs.iter()) {
-                if surfaces.caster_hit(x, *d, f32::MAX).is_some() {
+                if surfaces.caster_occludes(x, *d) {
                     *c = u16::MAX;
                 }
             }

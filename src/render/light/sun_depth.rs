@@ -179,7 +179,7 @@ impl SunGrid {
             .for_each(|(k, slab)| {
                 for (j, column) in slab.chunks_mut(nx).enumerate() {
                     let origin = to_world * shape.node(0, j, k);
-                    let from = if surfaces.caster_hit(origin, -dir, f32::MAX).is_some() {
+                    let from = if surfaces.caster_occludes(origin, -dir) {
                         0
                     } else {
                         match surfaces.caster_hit(origin, dir, length) {
