@@ -220,6 +220,14 @@ impl Surfaces {
             .unwrap_or(f32::INFINITY)
     }
 
+    /// Whether the camera ray meets a holdout (any hit: the pixel corners' test).
+    #[inline]
+    pub(crate) fn holdout_seen(&self, ray: &Ray) -> bool {
+        self.camera
+            .as_ref()
+            .is_some_and(|b| b.occluded(ray.origin, ray.dir, f32::MAX))
+    }
+
     /// Distance along `ray` to the ground plane, infinity when it does not meet it ahead.
     #[inline]
     pub(crate) fn ground_hit(&self, ray: &Ray) -> f32 {

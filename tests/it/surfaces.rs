@@ -521,7 +521,7 @@ fn scene_holdouts_and_ground_load_with_located_errors_and_write_their_layers() {
 
 /// The cost of a holdout of about 100 k triangles (a terrain with a hill in front of the cloud)
 /// at 640×360 `Final`, against the same frame without, in this binary: the fastest of three
-/// renders each, interleaved. Also with `shadows` and the ground's shadow pass, and the frame's
+/// renders each (`NEPHELE_SURFACES_RUNS`), interleaved. Also with `shadows` and the ground's shadow pass, and the frame's
 /// beauty and `shadow` layer written as PNGs to look at (`NEPHELE_SURFACES_OUT`, default a
 /// temporary folder). Run by hand: `cargo test --release --test it holdout_cost -- --ignored
 /// --nocapture`.
@@ -596,7 +596,11 @@ fn holdout_cost() {
     };
     let (mut t0, mut t1, mut t2, mut t3) = (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
     let mut frames = None;
-    for _ in 0..3 {
+    let runs = std::env::var("NEPHELE_SURFACES_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3);
+    for _ in 0..runs {
         let (a, plain) = time(&base);
         let (b, f) = time(&held);
         let (c, g) = time(&shadowed);

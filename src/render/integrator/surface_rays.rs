@@ -61,8 +61,8 @@ impl TileHoldouts {
         self.corners.clear();
         for y in whole.y0..=whole.y1 {
             for x in whole.x0..=whole.x1 {
-                let hit = s.holdout_hit(&cam.ray(x as f32, y as f32));
-                self.corners.push(hit.is_finite());
+                self.corners
+                    .push(s.holdout_seen(&cam.ray(x as f32, y as f32)));
             }
         }
         if !self.corners.iter().any(|&c| c) {
