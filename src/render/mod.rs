@@ -27,6 +27,9 @@
 //!   ([`sky_directions`]), from a [`LightGrid`] built from a medium, exactly through a
 //!   [`Homogeneous`] medium ([`HomogeneousLights`]), or none ([`Unshadowed`]). Media here: the
 //!   blob cloud, [`BlobMedium`], and [`Homogeneous`] in a [`Shape`], for closed forms.
+//! - **The shot's surfaces**: [`Surfaces`] (`surfaces.rs`): holdouts ([`HoldoutMesh`], cast
+//!   through `bvh.rs`) that stop the camera's rays and, with `shadows`, the light grid's light;
+//!   the ground plane ([`Ground`]) of the `shadow` pass (`integrator/surface_rays.rs`).
 //! - **Files**: [`output`]: EXR (with the camera and provenance of [`output::FrameMetadata`]),
 //!   PNG, the EXR's colour space, Cryptomatte ids.
 //!
