@@ -215,6 +215,7 @@ fn turntable_settings(args: &Args, bounds: Aabb, length_scale: f32, k: u32) -> R
         time: 0.0,
         quality: Quality::preview(),
         base: None,
+        surfaces: None,
     }
 }
 

@@ -193,6 +193,13 @@ pub struct Frustum {
 }
 
 impl Frustum {
+    /// The frustum that may contain everything (rays of any direction: shadow rays).
+    pub const EVERYTHING: Frustum = Frustum {
+        apex: Vec3A::ZERO,
+        forward: Vec3A::ZERO,
+        planes: [Vec3A::ZERO; 4],
+    };
+
     /// Conservative: false only when the ball `(center, radius)` is certainly outside.
     #[inline]
     pub fn may_contain_ball(&self, center: Vec3A, radius: f32) -> bool {
@@ -231,6 +238,7 @@ mod tests {
                 look_at: Vec3::new(-2.0, 0.5, -4.0),
                 up: Vec3::Y,
                 fov_deg: 40.0,
+                shift: glam::Vec2::ZERO,
             },
             320,
             180,

@@ -78,6 +78,7 @@ pub(crate) fn settings(width: u32, height: u32, quality: Quality) -> RenderSetti
         time: 0.0,
         quality,
         base: None,
+        surfaces: None,
     }
 }
 

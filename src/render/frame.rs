@@ -28,6 +28,13 @@ pub struct Frame {
     /// **up**, the cloud's velocity averaged along the ray by each sample's share of the
     /// opacity; `[0, 0]` where there is no cloud. Written as the EXR's `forward.u`, `forward.v`.
     pub motion: Option<Vec<[f32; 2]>>,
+    /// The `holdout` layer, when the shot has holdouts: the share of each pixel's rays that a
+    /// holdout stopped (1 where one covers the pixel, fractional at its edges).
+    pub holdout: Option<Vec<f32>>,
+    /// The `shadow` layer (the shadow-catcher pass), when asked for: the sun's transmittance
+    /// through the cloud from the surface each pixel sees (the ground plane or a holdout), 1
+    /// where it sees none or the cloud casts no shadow there.
+    pub shadow: Option<Vec<f32>>,
     /// The window rendered, when only a region was ([`crate::render::Film::region`]); the pixels outside it
     /// are empty (no cloud).
     pub region: Option<Region>,

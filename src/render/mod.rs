@@ -29,6 +29,9 @@
 //!   ([`sky_directions`]), from a [`LightGrid`] built from a medium, exactly through a
 //!   [`Homogeneous`] medium ([`HomogeneousLights`]), or none ([`Unshadowed`]). Media here: the
 //!   blob cloud, [`BlobMedium`], and [`Homogeneous`] in a [`Shape`], for closed forms.
+//! - **The shot's surfaces**: [`Surfaces`] (`surfaces.rs`): holdouts ([`HoldoutMesh`], cast
+//!   through `bvh.rs`) that stop the camera's rays and, with `shadows`, the light grid's light;
+//!   the ground plane ([`Ground`]) of the `shadow` pass (`integrator/surface_rays.rs`).
 //! - **Files**: [`output`]: EXR (with the camera and provenance of [`output::FrameMetadata`]),
 //!   PNG, the EXR's colour space, Cryptomatte ids.
 //!
@@ -74,6 +77,7 @@ mod bench;
 /// while it does not). Frames of another render version are re-rendered on resume.
 pub const RENDER_VERSION: u32 = 3;
 
+pub(crate) mod bvh;
 pub(crate) mod camera;
 pub(crate) mod counters;
 pub(crate) mod fast_exp;
@@ -87,6 +91,7 @@ pub(crate) mod memory;
 pub mod output;
 pub(crate) mod sampler;
 pub(crate) mod settings;
+pub(crate) mod surfaces;
 
 // The front. Rendering a frame of blobs (and the reference march that checks it):
 pub use counters::work_counts;
@@ -114,6 +119,8 @@ pub use light::sky_dome::SkyDome;
 pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
 pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
+// The shot's opaque surfaces (holdouts, the ground plane):
+pub use surfaces::{Ground, HoldoutMesh, Surfaces};
 
 // The light grid's floor, for the blob medium's tests.
 #[cfg(test)]

@@ -142,6 +142,8 @@ pub struct Scene {
     pub output_dir: PathBuf,
     /// Frame file prefix (from `output.name`, default the scene file's stem).
     pub name: String,
+    /// The holdouts (read and placed) and the ground plane, when the scene has any.
+    pub surfaces: Option<std::sync::Arc<crate::render::Surfaces>>,
 }
 
 impl SceneError {
@@ -293,6 +295,9 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
             Target::Fit { mesh, .. } => *mesh = resolve(mesh).map_err(|e| located(mesh, e))?,
         }
     }
+    // The holdouts' meshes are read now: one that cannot be is the scene's error, before any
+    // frame is written.
+    let surfaces = file::holdouts::load(path, text, base, &file.holdouts, file.ground)?;
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -314,5 +319,6 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         file,
         output_dir,
         name,
+        surfaces,
     })
 }

@@ -67,6 +67,7 @@ fn settings() -> RenderSettings {
         time: 0.0,
         quality: Quality::final_frame(),
         base: None,
+        surfaces: None,
     }
 }
 
@@ -506,6 +507,8 @@ fn exr_bytes_are_identical_across_encodings() {
         passes: None,
         mattes: None,
         motion: None,
+        holdout: None,
+        shadow: None,
         region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]

@@ -34,4 +34,5 @@ mod render;
 mod robustness;
 mod scene;
 mod sheets;
+mod surfaces;
 mod usd_camera;

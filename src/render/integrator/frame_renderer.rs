@@ -193,6 +193,7 @@ impl FrameRenderer {
                     Some(l)
                         if still
                             && l.settings.sun == settings.sun
+                            && l.settings.surfaces == settings.surfaces
                             && l.settings.light_grid_cells(medium.bounds())
                                 == settings.light_grid_cells(medium.bounds()) =>
                     {

@@ -40,11 +40,17 @@ pub(crate) mod frame_renderer;
 pub(crate) mod motion_blur;
 
 mod march;
+pub(crate) mod surface_rays;
 mod tiles;
 
 pub use march::motion::{CloudVelocity, MotionSource};
 pub(crate) use march::{MarchFn, PixelResult, PixelSum, ScreenMotion, march, shaded_march};
 pub(crate) use tiles::render_film;
+
+use glam::Vec3A;
+
+use crate::render::camera::Frustum;
+use surface_rays::{Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
 
 use crate::render::Frame;
 use crate::render::camera::CameraRays;
@@ -93,6 +99,29 @@ pub fn render_medium_unshaded<M: Medium>(settings: &RenderSettings, medium: &M) 
     render_tiles(settings, medium, &Unshadowed, &Film::default(), None, trace)
 }
 
+/// A thread's scratch for the pixels: the march's, the shadow pass's (the medium begun on
+/// [`Frustum::EVERYTHING`]; with the pass only), and the tile's holdouts.
+pub(crate) struct PixelScratch<S> {
+    pub(crate) march: S,
+    pub(crate) shadow: Option<S>,
+    pub(crate) tile: TileHoldouts,
+}
+
+impl<S> PixelScratch<S> {
+    /// A thread's scratch for `medium`, with the shadow pass's when `shadow_pass`.
+    pub(crate) fn new<M: Medium<Scratch = S>>(medium: &M, shadow_pass: bool) -> PixelScratch<S> {
+        PixelScratch {
+            march: medium.scratch(),
+            shadow: shadow_pass.then(|| {
+                let mut s = medium.scratch();
+                medium.begin_tile(&Frustum::EVERYTHING, &mut s);
+                s
+            }),
+            tile: TileHoldouts::default(),
+        }
+    }
+}
+
 fn render_tiles<M: Medium, L: ShadowDepths>(
     settings: &RenderSettings,
     medium: &M,
@@ -101,6 +130,9 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
     motion: Option<&MotionSource<'_>>,
     trace: MarchFn<M, L>,
 ) -> Frame {
+    let surfaces = settings.surfaces.as_deref();
+    let shadow_pass = surfaces.is_some_and(|s| s.shadow_pass());
+    let to_sun = -Vec3A::from(settings.sun.travel_dir());
     let w = settings.width;
     let cam = CameraRays::new(&settings.camera, w, settings.height);
     let screen = motion
@@ -118,37 +150,69 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
         film,
         &cam,
         screen.as_ref(),
-        || medium.scratch(),
-        |scratch, frustum| medium.begin_tile(frustum, scratch),
+        || PixelScratch::new(medium, shadow_pass),
+        |scratch, frustum, whole| {
+            medium.begin_tile(frustum, &mut scratch.march);
+            scratch.tile.begin(surfaces, &cam, whole, frustum);
+        },
         |scratch, (x, y), coverage, motion| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut rng = item_rng(seed, Stream::Render, pixel);
+            let PixelScratch {
+                march,
+                shadow,
+                tile,
+            } = scratch;
+            let corners = tile.pixel(x, y);
+            // Covered where no cloud can be and no shadow is asked for: where the ray stops
+            // does not matter, only that it does.
+            let blind = corners == Corners::All && shadow.is_none() && medium.tile_is_empty(march);
             let mut ray = |k: u32, grid: (u32, u32)| {
                 let (ray, jitter) = pixel_sample(&cam, (x, y), k, grid, &mut rng);
-                trace(
+                let t_hold = if blind {
+                    f32::MAX
+                } else {
+                    surface_rays::stop(surfaces, corners, &ray)
+                };
+                let mut r = trace(
                     medium,
                     lights,
                     &shading,
-                    scratch,
+                    march,
                     &ray,
                     jitter,
                     optical_step,
+                    t_hold,
                     coverage,
                     motion,
-                )
+                );
+                if t_hold < f32::INFINITY {
+                    r.holdout = 1.0;
+                }
+                if let (Some(s), Some(sh)) = (surfaces, shadow.as_mut()) {
+                    r.shadow = surface_rays::shadow(s, medium, sh, &ray, t_hold, to_sun, jitter);
+                }
+                r
             };
             let mut sum = PixelSum::new();
             let (n, grid) = if samples > 1 {
                 (samples, (samples, side))
             } else {
                 let first = ray(0, (1, 1));
-                if edge <= 1 || !at_edge(&first) {
+                // A holdout's edge through the pixel: more rays, whatever the cloud does.
+                let held = corners == Corners::Some;
+                if !held && (edge <= 1 || !at_edge(&first)) {
                     return (first, 1);
                 }
                 // The centre ray stays one of the pixel's rays (no ray is wasted; the
                 // generator's stream simply goes on).
                 sum.add(&first);
-                (edge, (edge, edge_side))
+                if held {
+                    let n = edge.max(HOLDOUT_EDGE_RAYS);
+                    (n, (n, (n as f32).sqrt().ceil() as u32))
+                } else {
+                    (edge, (edge, edge_side))
+                }
             };
             for k in 0..n {
                 sum.add(&ray(k, grid));

@@ -33,7 +33,8 @@ use rand::RngExt;
 
 use crate::blobby::Blob;
 use crate::render::Frame;
-use crate::render::camera::{CameraRays, Ray};
+use crate::render::camera::{CameraRays, Frustum, Ray};
+use crate::render::integrator::surface_rays::{self, Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
 use crate::render::integrator::{
     MotionSource, PixelSum, ScreenMotion, pixel_sample, render_film, shaded_march,
 };
@@ -242,7 +243,10 @@ fn shift_cells(
 /// Per-thread scratch: one medium scratch per stratum and the pixel's spatial samples.
 struct Scratch<S> {
     media: Vec<S>,
+    /// Per stratum, the shadow pass's scratch (begun on `Frustum::EVERYTHING`; with the pass).
+    shadow: Vec<S>,
     rays: Vec<(Ray, f32)>,
+    tile: TileHoldouts,
 }
 
 /// The tiles of a blurred frame: every pixel's rays spread over the strata of `slices`, lit by
@@ -274,6 +278,9 @@ pub(crate) fn render_slices(
         Stream::Shutter,
         settings.time.to_bits() as u64,
     );
+    let surfaces = settings.surfaces.as_deref();
+    let shadow_pass = surfaces.is_some_and(|s| s.shadow_pass());
+    let to_sun = -Vec3A::from(settings.sun.travel_dir());
     render_film(
         settings,
         film,
@@ -281,12 +288,26 @@ pub(crate) fn render_slices(
         screen.as_ref(),
         || Scratch {
             media: slices.iter().map(|m| m.scratch()).collect(),
+            shadow: if shadow_pass {
+                slices
+                    .iter()
+                    .map(|m| {
+                        let mut s = m.scratch();
+                        m.begin_tile(&Frustum::EVERYTHING, &mut s);
+                        s
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            },
             rays: Vec::new(),
+            tile: TileHoldouts::default(),
         },
-        |scratch, frustum| {
+        |scratch, frustum, whole| {
             for (m, s) in slices.iter().zip(scratch.media.iter_mut()) {
                 m.begin_tile(frustum, s);
             }
+            scratch.tile.begin(surfaces, &cam, whole, frustum);
         },
         |scratch, (x, y), coverage, motion| {
             let pixel = y as u64 * w as u64 + x as u64;
@@ -297,16 +318,29 @@ pub(crate) fn render_slices(
                 let ray = pixel_sample(&cam, (x, y), k, (samples, side), &mut rng);
                 scratch.rays.push(ray);
             }
+            let mut rays = rays;
+            let corners = scratch.tile.pixel(x, y);
+            // One position a pixel: a holdout's edge through it spreads its rays over it.
+            if samples == 1 && corners == Corners::Some {
+                rays = rays.max(HOLDOUT_EDGE_RAYS + 1);
+                let grid = (rays, (rays as f32).sqrt().ceil() as u32);
+                scratch.rays.clear();
+                for k in 0..rays {
+                    let ray = pixel_sample(&cam, (x, y), k, grid, &mut rng);
+                    scratch.rays.push(ray);
+                }
+            }
             let rotation = time.random_range(0..strata);
             let mut sum = PixelSum::new();
             for k in 0..rays {
-                let (ray, jitter) = scratch.rays[(k % samples) as usize];
+                let (ray, jitter) = scratch.rays[k as usize % scratch.rays.len()];
                 let j = ((k + rotation) % strata) as usize;
                 let dt = (time.random::<f32>() - 0.5) * stratum;
                 let (m, s) = (&slices[j], &mut scratch.media[j]);
                 m.set_time_offset(s, dt);
                 let lights = &lights[j.min(lights.len() - 1)];
-                let r = trace(
+                let t_hold = surface_rays::stop(surfaces, corners, &ray);
+                let mut r = trace(
                     m,
                     lights,
                     &shading,
@@ -314,9 +348,17 @@ pub(crate) fn render_slices(
                     &ray,
                     jitter,
                     optical_step,
+                    t_hold,
                     coverage,
                     motion,
                 );
+                if t_hold < f32::INFINITY {
+                    r.holdout = 1.0;
+                }
+                if let (Some(surf), Some(sh)) = (surfaces, scratch.shadow.get_mut(j)) {
+                    m.set_time_offset(sh, dt);
+                    r.shadow = surface_rays::shadow(surf, m, sh, &ray, t_hold, to_sun, jitter);
+                }
                 sum.add(&r);
             }
             (sum.mean(rays), rays)

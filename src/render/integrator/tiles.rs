@@ -30,6 +30,10 @@ struct Band<'a> {
     ranks: Option<&'a mut [[Rank; RANKS]]>,
     /// The motion vectors, when it asks for them.
     motion: Option<&'a mut [[f32; 2]]>,
+    /// The `holdout` layer's rows, when the shot has holdouts.
+    holdout: Option<&'a mut [f32]>,
+    /// The `shadow` layer's rows, with the shadow pass.
+    shadow: Option<&'a mut [f32]>,
 }
 
 /// One band's rows of the frame's render passes ([`crate::render::Passes`]).
@@ -51,6 +55,12 @@ impl Band<'_> {
             rows.sky[i] = p.passes.sky.to_array();
             rows.multiple[i] = p.passes.multiple.to_array();
         }
+        if let Some(h) = &mut self.holdout {
+            h[i] = p.holdout;
+        }
+        if let Some(s) = &mut self.shadow {
+            s[i] = p.shadow;
+        }
     }
 }
 
@@ -67,7 +77,7 @@ pub(crate) fn render_film<S: Send>(
     cam: &CameraRays,
     screen: Option<&ScreenMotion<'_>>,
     scratch: impl Fn() -> S + Sync + Send,
-    begin_tile: impl Fn(&mut S, &Frustum) + Sync + Send,
+    begin_tile: impl Fn(&mut S, &Frustum, &Region) + Sync + Send,
     pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>, &mut MotionSum<'_>) -> (PixelResult, u32)
     + Sync
     + Send,
@@ -90,6 +100,16 @@ pub(crate) fn render_film<S: Send>(
             .as_ref()
             .map(|m| Box::new(IdMattes::empty(m, n))),
         motion: film.motion.then(|| vec![[0.0; 2]; n]),
+        holdout: settings
+            .surfaces
+            .as_ref()
+            .is_some_and(|s| s.has_holdouts())
+            .then(|| vec![0.0; n]),
+        shadow: settings
+            .surfaces
+            .as_ref()
+            .is_some_and(|s| s.shadow_pass())
+            .then(|| vec![1.0; n]),
         region: film.region,
     };
     let band_px = (w * TILE) as usize;
@@ -101,8 +121,12 @@ pub(crate) fn render_film<S: Send>(
         passes,
         mattes,
         motion,
+        holdout,
+        shadow,
         ..
     } = &mut frame;
+    let holdout = optional_rows(holdout, band_px, bands);
+    let shadow = optional_rows(shadow, band_px, bands);
     let passes: Vec<Option<PassRows>> = match passes {
         Some(p) => {
             let crate::render::Passes { sun, sky, multiple } = &mut **p;
@@ -127,9 +151,10 @@ pub(crate) fn render_film<S: Send>(
         .zip(alpha.chunks_mut(band_px))
         .zip(depth.chunks_mut(band_px))
         .zip(passes.into_iter().zip(ranks).zip(motion))
+        .zip(holdout.into_iter().zip(shadow))
         .enumerate()
         .map(
-            |(k, (((rgb, alpha), depth), ((passes, ranks), motion)))| Band {
+            |(k, ((((rgb, alpha), depth), ((passes, ranks), motion)), (holdout, shadow)))| Band {
                 y0: k as u32 * TILE,
                 rgb,
                 alpha,
@@ -137,6 +162,8 @@ pub(crate) fn render_film<S: Send>(
                 passes,
                 ranks,
                 motion,
+                holdout,
+                shadow,
             },
         )
         .collect();
@@ -158,6 +185,7 @@ pub(crate) fn render_film<S: Send>(
                 begin_tile(
                     scratch,
                     &cam.frustum(whole.x0, whole.y0, whole.x1, whole.y1),
+                    &whole,
                 );
                 for y in part.y0..part.y1 {
                     for x in part.x0..part.x1 {
@@ -177,4 +205,16 @@ pub(crate) fn render_film<S: Send>(
             }
         });
     frame
+}
+
+/// The bands' rows of an optional one-channel layer (`None` per band without it).
+fn optional_rows(
+    v: &mut Option<Vec<f32>>,
+    band_px: usize,
+    bands: usize,
+) -> Vec<Option<&mut [f32]>> {
+    match v {
+        Some(v) => v.chunks_mut(band_px).map(Some).collect(),
+        None => (0..bands).map(|_| None).collect(),
+    }
 }

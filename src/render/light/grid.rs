@@ -16,12 +16,13 @@
 use glam::Vec3A;
 
 use crate::render::light::sky_cells::SKY_DIRECTIONS;
-use crate::render::light::sky_depth::{SKY_DEPTH_STEP, SkyWork, sky_depths};
+use crate::render::light::sky_depth::{SKY_DEPTH_STEP, SkyWork, block_sky, sky_depths};
 use crate::render::light::sun_depth::SunGrid;
 use crate::render::light::{LightDepths, ShadowDepths};
 use crate::render::medium::Medium;
 use crate::render::medium::lattice::{GridShape, trilinear};
 use crate::render::settings::RenderSettings;
+use crate::render::surfaces::Surfaces;
 
 /// Optical depths toward the sun (on a light-aligned grid of the same spacing, `SunGrid`) and
 /// toward each sky cell on a grid `SKY_SPACING` times coarser (sky light comes from a broad
@@ -73,14 +74,15 @@ impl LightGrid {
     ) -> Option<LightGrid> {
         let sun = Vec3A::from(settings.sun.travel_dir());
         let res = settings.light_grid_cells(medium.bounds());
-        LightGrid::build_reusing(medium, sun, res, previous)
+        let casters = settings.surfaces.as_deref().filter(|s| s.casts_shadows());
+        LightGrid::build_reusing(medium, sun, res, previous, casters)
     }
 
     /// Light grid for sunlight travelling along `sun_dir` (unit) through `medium`, about `res`
     /// cells on the longest side of its bounds. `None` when the medium has no bounds (empty or
     /// unbounded).
     pub fn build<M: Medium>(medium: &M, sun_dir: Vec3A, res: u32) -> Option<LightGrid> {
-        LightGrid::build_reusing(medium, sun_dir, res, None)
+        LightGrid::build_reusing(medium, sun_dir, res, None, None)
     }
 
     /// [`LightGrid::build`], reusing the buffers of `previous`: a shot does not allocate and
@@ -89,11 +91,14 @@ impl LightGrid {
     /// The sun's depths are summed along light columns straight from the medium ([`SunGrid`]);
     /// the sky's are swept through a world grid of [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times the spacing whose
     /// extinction is the sun grid's samples, prefiltered: the medium is sampled once per frame.
+    /// The shadow-casting holdouts of `casters` then take the light from the nodes they hide
+    /// from the sun ([`SunGrid::block`]) and from each sky cell ([`block_sky`]).
     pub(crate) fn build_reusing<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,
         res: u32,
         previous: Option<LightGrid>,
+        casters: Option<&Surfaces>,
     ) -> Option<LightGrid> {
         let (lo, hi) = medium.bounds()?;
         let shape = GridShape::covering(lo, hi, res);
@@ -103,6 +108,10 @@ impl LightGrid {
         };
         let mut sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
         let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
+        if let Some(c) = casters {
+            sun.block(c);
+            block_sky(&sky_shape, &work.coarse, c, &mut sky);
+        }
         // The sampled extinction served the sky's coarse grid only: not kept through the
         // march (a frame's peak memory), at the price of allocating it again next frame.
         sun.release_extinction();

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions};
 use crate::render::light::sun_depth::SunGrid;
 use crate::render::medium::lattice::GridShape;
+use crate::render::surfaces::Surfaces;
 
 /// The sky build's working buffers: the coarse grid's extinction and one depth buffer per sweep
 /// running at once.
@@ -243,4 +244,43 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, shift: f32, out: &mut Swe
         }
         std::mem::swap(back_tau, tau);
     }
+}
+
+/// Take the light of each sky cell from the nodes of the sky's grid (`shape`, depths `sky`
+/// node-major) that a shadow-casting holdout hides from it: the depth saturates (`u16::MAX`
+/// steps, 128, the same as the sun's [`crate::render::surfaces::BLOCKED_DEPTH`]). Only the
+/// nodes the cloud can be looked up between are cast from: those with extinction (`coarse`)
+/// within one node; one BVH cast per such node and sky cell.
+pub(crate) fn block_sky(shape: &GridShape, coarse: &[f32], surfaces: &Surfaces, sky: &mut [u16]) {
+    let [nx, ny, nz] = shape.dims;
+    let dirs = directions();
+    let near_cloud = |i: usize, j: usize, k: usize| {
+        for kk in k.saturating_sub(1)..(k + 2).min(nz) {
+            for jj in j.saturating_sub(1)..(j + 2).min(ny) {
+                for ii in i.saturating_sub(1)..(i + 2).min(nx) {
+                    if coarse
+                        .get(ii + nx * (jj + ny * kk))
+                        .is_some_and(|&s| s > 0.0)
+                    {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    };
+    sky.par_chunks_mut(SKY_DIRECTIONS)
+        .enumerate()
+        .for_each(|(n, out)| {
+            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+            if !near_cloud(i, j, k) {
+                return;
+            }
+            let x = shape.node(i, j, k);
+            for (c, d) in out.iter_mut().zip(dirs.iter()) {
+                if surfaces.caster_occludes(x, *d) {
+                    *c = u16::MAX;
+                }
+            }
+        });
 }

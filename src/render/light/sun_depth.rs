@@ -35,6 +35,7 @@ use rayon::prelude::*;
 use crate::render::camera::Ray;
 use crate::render::medium::Medium;
 use crate::render::medium::lattice::{Columns, GridShape, sample_bundle, trilinear};
+use crate::render::surfaces::{BLOCKED_DEPTH, Surfaces};
 
 /// Columns per bundle (one cull each) along the grid's second axis.
 const BUNDLE_COLUMNS: usize = 8;
@@ -160,6 +161,37 @@ impl SunGrid {
             values,
             sigma,
         })
+    }
+
+    /// Take the sunlight from the nodes that a shadow-casting holdout hides from the sun
+    /// (their depth becomes [`BLOCKED_DEPTH`]): per light column, one ray toward the sun from
+    /// its first node (a holdout upstream of the grid hides the whole column) and one along
+    /// the column (the nodes past its first holdout hit are hidden). Two BVH casts a column.
+    pub(crate) fn block(&mut self, surfaces: &Surfaces) {
+        let [nx, ny, _] = self.shape.dims;
+        let to_world = self.to_light.transpose();
+        let dir = to_world.x_axis;
+        let (shape, h) = (&self.shape, self.shape.h);
+        let length = h * (nx - 1) as f32;
+        self.values
+            .par_chunks_mut(nx * ny)
+            .enumerate()
+            .for_each(|(k, slab)| {
+                for (j, column) in slab.chunks_mut(nx).enumerate() {
+                    let origin = to_world * shape.node(0, j, k);
+                    let from = if surfaces.caster_occludes(origin, -dir) {
+                        0
+                    } else {
+                        match surfaces.caster_hit(origin, dir, length) {
+                            Some(t) => ((t / h).floor() as usize + 1).min(nx),
+                            None => nx,
+                        }
+                    };
+                    for v in &mut column[from..] {
+                        *v = v.max(BLOCKED_DEPTH);
+                    }
+                }
+            });
     }
 
     /// Free the sampled extinction ([`SunGrid::coarse_extinction`] gives 0 after this): it is

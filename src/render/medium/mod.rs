@@ -111,6 +111,13 @@ pub trait Medium: Sync {
     fn empty_stride(&self) -> f32 {
         0.0
     }
+
+    /// True when no ray of the last tile ([`Medium::begin_tile`]) can meet the medium (its
+    /// intervals are then empty): a pixel a holdout covers there needs no cast for where its
+    /// ray stops. Default false (not known).
+    fn tile_is_empty(&self, _scratch: &Self::Scratch) -> bool {
+        false
+    }
 }
 
 /// Shape of a [`Homogeneous`] medium.

@@ -27,6 +27,11 @@
 //! window the full frame (only the region's pixels are stored); the PNG is full size, RGBA,
 //! transparent outside the region.
 //!
+//! Holdouts ([`Frame::holdout`]): the channel `holdout.A`, each pixel's share covered by a
+//! holdout (the plate's geometry; the beauty is already 0 behind it). The shadow pass
+//! ([`Frame::shadow`]): `shadow.R/G/B` (equal), the sun's transmittance through the cloud from
+//! the surface the pixel sees, 1 elsewhere: what a compositor multiplies the plate by.
+//!
 //! ID mattes ([`Frame::mattes`]): channels `CryptoObject00.R/G/B/A`, … and the
 //! `cryptomatte/<key>/…` header attributes of [`crate::render::output::cryptomatte`].
 
@@ -261,6 +266,14 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     if let Some(motion) = &frame.motion {
         for (c, name) in ["forward.u", "forward.v"].into_iter().enumerate() {
             list.push(chan(name, pixels.iter().map(|&i| motion[i][c]).collect()));
+        }
+    }
+    if let Some(h) = &frame.holdout {
+        list.push(chan("holdout.A", crop(h)));
+    }
+    if let Some(sh) = &frame.shadow {
+        for name in ["R", "G", "B"] {
+            list.push(chan(&format!("shadow.{name}"), crop(sh)));
         }
     }
     if let Some(m) = &frame.mattes {

@@ -461,6 +461,8 @@ pub struct RenderSettings {
     pub quality: Quality,
     /// `cloud.base` resolved against the target's box (`None`: no base).
     pub base: Option<BasePlane>,
+    /// The shot's holdouts and ground plane (`None`: none; `crate::render::surfaces`).
+    pub surfaces: Option<std::sync::Arc<crate::render::Surfaces>>,
 }
 
 impl RenderSettings {

@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod chan;
+pub mod holdouts;
 pub mod locate;
 pub mod transform;
 pub mod usd_camera;
@@ -19,6 +20,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
+pub use self::holdouts::{GroundSpec, HoldoutSpec};
 use self::transform::TargetTransform;
 use super::SceneError;
 use crate::animate::{Animation, Timing, Wind};
@@ -82,6 +84,12 @@ pub struct SceneFile {
     /// Seed of every random choice (animation, render jitter, noise).
     #[serde(default = "default_seed")]
     pub seed: u64,
+    /// Opaque meshes of the plate that hide the cloud behind them (default none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub holdouts: Vec<HoldoutSpec>,
+    /// The ground plane, the shadow catcher of the `shadow` pass (default none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground: Option<GroundSpec>,
 }
 
 fn default_seed() -> u64 {
@@ -370,6 +378,20 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         ));
     }
     finite("exposure", &[s.exposure])?;
+    if let Some(g) = &s.ground
+        && !(g.height.is_finite() && g.height.abs() < 1e30)
+    {
+        return Err(bad(
+            "ground.height",
+            format!("must be a finite height in scene units, got {}", g.height),
+        ));
+    }
+    if let Some(i) = s.holdouts.iter().position(|h| h.mesh.trim().is_empty()) {
+        return Err(bad(
+            "holdouts",
+            format!("holdouts[{i}].mesh is empty; name a mesh file (OBJ, PLY, OFF or STL)"),
+        ));
+    }
     s.camera.validate().map_err(|e| bad(e.field, e.message))?;
     let field = |e: crate::render::InvalidField| bad(e.field, e.message);
     s.sun.validate().map_err(field)?;

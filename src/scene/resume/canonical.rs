@@ -372,6 +372,7 @@ impl Canonical for RenderSettings {
             time,
             quality,
             base,
+            surfaces,
         } = self;
         e.str("RenderSettings")
             .put(width)
@@ -386,6 +387,10 @@ impl Canonical for RenderSettings {
             .put(time)
             .put(quality)
             .put(base);
+        // Only when there are any: the hashes of frames without them do not change.
+        if let Some(s) = surfaces {
+            e.str("surfaces").put(&s.key());
+        }
     }
 }
 

@@ -321,6 +321,7 @@ impl Shot {
                     softness: (b.softness as f64 * height) as f32,
                 }
             }),
+            surfaces: self.scene.surfaces.clone(),
         })
     }
 

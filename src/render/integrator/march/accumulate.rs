@@ -122,6 +122,8 @@ impl<const PASSES: bool> Accumulator<PASSES> {
                 f32::INFINITY
             },
             passes: self.passes,
+            holdout: 0.0,
+            shadow: 1.0,
         }
     }
 }

@@ -33,6 +33,7 @@ pub(crate) type MarchFn<M, L> = fn(
     &Ray,
     f32,
     f32,
+    f32,
     &mut Coverage<'_>,
     &mut MotionSum<'_>,
 ) -> PixelResult;
@@ -56,7 +57,9 @@ pub(crate) fn shaded_march<M: Medium, L: ShadowDepths>(film: &Film) -> MarchFn<M
 /// each segment; fine segments absorb about `optical_step` of the pixel's light. The segments
 /// are [`MarchSteps`]' (its doc has the policy); each sample that absorbs is integrated with
 /// the energy-conserving step by the [`Accumulator`], and a ray that leaves the cloud adds the
-/// sky light scattered straight on along it.
+/// sky light scattered straight on along it. The ray stops at `t_max` (a holdout's surface:
+/// infinity when it meets none, and then the march is the same to the bit); a ray stopped there
+/// adds no sky light straight on (the holdout hides the sky behind it).
 ///
 /// With `SHADE`, the samples are lit (else coverage and depth only); with `MATTES`, each
 /// sample's share of the pixel's opacity goes to `coverage`, for the matte of the medium's
@@ -80,6 +83,7 @@ pub(crate) fn march<
     ray: &Ray,
     jitter: f32,
     optical_step: f32,
+    t_max: f32,
     coverage: &mut Coverage<'_>,
     motion: &mut MotionSum<'_>,
 ) -> PixelResult {
@@ -87,7 +91,11 @@ pub(crate) fn march<
     let mut steps = MarchSteps::new(medium, optical_step);
     let mut acc = Accumulator::<PASSES>::new();
     'intervals: for n in 0..medium.intervals(scratch).len() {
-        steps.enter(medium.intervals(scratch)[n]);
+        let [a, b] = medium.intervals(scratch)[n];
+        if a >= t_max {
+            break;
+        }
+        steps.enter([a, b.min(t_max)]);
         while let Some(Segment { t, len }) = steps.next(jitter) {
             let x = ray.at(t);
             let (sigma, inside) = medium.sample(scratch, t, x);
@@ -110,8 +118,46 @@ pub(crate) fn march<
             steps.advance(acc.transmittance());
         }
     }
-    if SHADE {
+    if SHADE && t_max == f32::INFINITY {
         acc.leave(shading, ray.dir);
     }
     acc.result()
+}
+
+/// Transmittance below which a shadow ray stops ([`optical_depth`]).
+const MIN_SHADOW_TRANSMITTANCE: f32 = 1e-4;
+
+/// Steps of the shadow pass's march per coarse step of the medium ([`optical_depth`]).
+const SHADOW_STEPS_PER_COARSE: f32 = 8.0;
+
+/// The optical depth `∫σ dt` along `ray` through the medium's intervals (the shadow pass's ray
+/// toward the sun from a surface): uniform steps of an eighth of the medium's coarse step
+/// ([`Medium::step`]), each sampled at `jitter` inside it — no coarse steps through the
+/// empty parts, which would step over the thin fringe a grazing shadow ray crosses (one such
+/// ray a camera ray is affordable) — stopping once the transmittance is below 10⁻⁴. `scratch`
+/// must have begun a tile that contains the ray ([`crate::render::Frustum::EVERYTHING`]).
+pub(crate) fn optical_depth<M: Medium>(
+    medium: &M,
+    scratch: &mut M::Scratch,
+    ray: &Ray,
+    jitter: f32,
+) -> f32 {
+    medium.begin_ray(ray, scratch);
+    let h = medium.step().max(1e-9) / SHADOW_STEPS_PER_COARSE;
+    let min_tau = -MIN_SHADOW_TRANSMITTANCE.ln();
+    let mut tau = 0.0f32;
+    for n in 0..medium.intervals(scratch).len() {
+        let [a, b] = medium.intervals(scratch)[n];
+        let mut s = a;
+        while s < b {
+            let len = h.min(b - s);
+            let t = s + jitter * len;
+            tau += medium.extinction(scratch, t, ray.at(t)) * len;
+            if tau > min_tau {
+                return tau;
+            }
+            s += len;
+        }
+    }
+    tau
 }

@@ -143,6 +143,7 @@ mod tests {
             time: 0.0,
             quality: Quality::preview(),
             base: None,
+            surfaces: None,
         }
     }
 
@@ -194,6 +195,7 @@ mod tests {
             look_at: o.as_vec3(),
             up: Vec3::Y,
             fov_deg: 1.2,
+            shift: glam::Vec2::ZERO,
         };
         let s = settings(camera);
         // Pixels per world unit at the cloud's distance.
@@ -233,6 +235,7 @@ mod tests {
             look_at: o.as_vec3(),
             up: Vec3::Y,
             fov_deg: 30.0,
+            shift: glam::Vec2::ZERO,
         };
         let s = settings(camera);
         // 0.1 rad a frame: 3.6 px at the image's sides.

@@ -62,6 +62,11 @@ pub(crate) struct PixelResult {
     pub(crate) depth: f32,
     /// The render passes, when asked for (else zero).
     pub(crate) passes: PixelPasses,
+    /// Share of the rays stopped by a holdout (the `holdout` layer; 0 without holdouts).
+    pub(crate) holdout: f32,
+    /// The sun's transmittance through the cloud from the surface the rays see (the `shadow`
+    /// layer; 1 where they see none, and without the pass).
+    pub(crate) shadow: f32,
 }
 
 /// The running mean of a pixel's rays (coverage-weighted depth).
@@ -80,6 +85,8 @@ impl PixelSum {
                 transmittance: 0.0,
                 depth: 0.0,
                 passes: PixelPasses::ZERO,
+                holdout: 0.0,
+                shadow: 0.0,
             },
             depth_w: 0.0,
         }
@@ -90,6 +97,8 @@ impl PixelSum {
         self.acc.rgb += r.rgb;
         self.acc.transmittance += r.transmittance;
         self.acc.passes += r.passes;
+        self.acc.holdout += r.holdout;
+        self.acc.shadow += r.shadow;
         if r.depth.is_finite() {
             let c = 1.0 - r.transmittance;
             self.acc.depth += r.depth * c;
@@ -104,6 +113,8 @@ impl PixelSum {
         acc.rgb *= inv;
         acc.transmittance *= inv;
         acc.passes = acc.passes * inv;
+        acc.holdout *= inv;
+        acc.shadow *= inv;
         acc.depth = if self.depth_w > 0.0 {
             acc.depth / self.depth_w
         } else {

@@ -78,6 +78,7 @@ fn settings(time_samples: u32) -> RenderSettings {
             ..Quality::final_frame()
         },
         base: None,
+        surfaces: None,
     }
 }
 
@@ -132,6 +133,8 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         passes: None,
         mattes: None,
         motion: None,
+        holdout: None,
+        shadow: None,
         region: None,
     };
     for offset in &centres {

@@ -336,4 +336,8 @@ impl Medium for BlobMedium {
     fn empty_stride(&self) -> f32 {
         self.stride
     }
+
+    fn tile_is_empty(&self, s: &BlobScratch) -> bool {
+        s.tile.is_empty()
+    }
 }

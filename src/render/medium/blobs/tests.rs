@@ -29,6 +29,7 @@ fn tiny_settings(length_scale: f32) -> RenderSettings {
         time: 0.0,
         quality: Quality::final_frame(),
         base: None,
+        surfaces: None,
     }
 }
 

@@ -16,7 +16,7 @@ use super::manifest::Manifest;
 pub enum Component {
     /// [`RENDER_VERSION`].
     Renderer,
-    /// Image size, quality, exposure, seed, time, length unit.
+    /// Image size, quality, exposure, seed, time, length unit; the holdouts and ground plane.
     Image,
     /// The frame's camera.
     Camera,
@@ -71,7 +71,7 @@ impl Component {
     pub fn label(self) -> &'static str {
         match self {
             Component::Renderer => "renderer",
-            Component::Image => "image size or quality",
+            Component::Image => "image size, quality, holdouts or ground",
             Component::Camera => "camera",
             Component::Light => "sun and sky",
             Component::Look => "cloud look",
@@ -174,6 +174,7 @@ pub fn frame_inputs(
         time,
         quality,
         base,
+        surfaces,
     } = settings;
     hashes.insert(
         Component::Image,
@@ -185,6 +186,11 @@ pub fn frame_inputs(
                 .put(seed)
                 .put(time)
                 .put(quality);
+            // The holdouts and the ground plane (their meshes, transforms, flags, the shadow
+            // pass), only when the scene has any: other frames keep their hashes.
+            if let Some(s) = surfaces {
+                e.str("surfaces").put(&s.key());
+            }
         }),
     );
     hashes.insert(Component::Camera, camera.canonical_hash());
