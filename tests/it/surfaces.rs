@@ -590,12 +590,33 @@ fn holdout_cost() {
     let held = with(false, false);
     let casting = with(true, false);
     let shadowed = with(true, true);
+    // The issue's frame: the holdout and a 1024 × 512 HDRI (a sky gradient, a bright sun patch).
+    let lit = {
+        let (w, h) = (1024usize, 512usize);
+        let texels = (0..w * h)
+            .map(|k| {
+                let (x, y) = (k % w, k / w);
+                let sky = Vec3::new(0.3, 0.45, 0.8) * (1.5 - y as f32 / h as f32);
+                let sun = (300..308).contains(&x) && (120..128).contains(&y);
+                sky + if sun { Vec3::splat(2000.0) } else { Vec3::ZERO }
+            })
+            .collect();
+        let map = nephele::render::EnvMap::from_texels(w, h, texels).unwrap();
+        let mut s = held.clone();
+        s.sky = Sky::Environment(nephele::render::Environment {
+            file: "generated".into(),
+            map: Some(Arc::new(map)),
+            ..Default::default()
+        });
+        s
+    };
     let time = |s: &RenderSettings| {
         let t = Instant::now();
         let f = FrameRenderer::render_once(s, &blobs, &FrameOptions::default()).0;
         (t.elapsed().as_secs_f64(), f)
     };
-    let (mut t0, mut t1, mut t2, mut t3) = (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
+    let (mut t0, mut t1, mut t2, mut t3, mut t4) =
+        (f64::MAX, f64::MAX, f64::MAX, f64::MAX, f64::MAX);
     let mut frames = None;
     let runs = std::env::var("NEPHELE_SURFACES_RUNS")
         .ok()
@@ -606,10 +627,12 @@ fn holdout_cost() {
         let (b, f) = time(&held);
         let (c, g) = time(&shadowed);
         let (d, _) = time(&casting);
+        let (e, _) = time(&lit);
         eprintln!(
             "without {a:.3} s, holdout {b:.3} s, holdout + shadows + pass {c:.3} s, holdout + \
-             shadows {d:.3} s"
+             shadows {d:.3} s, holdout + HDRI {e:.3} s"
         );
+        t4 = t4.min(e);
         t3 = t3.min(d);
         t0 = t0.min(a);
         t1 = t1.min(b);
@@ -618,10 +641,12 @@ fn holdout_cost() {
     }
     eprintln!(
         "fastest: without {t0:.3} s, with the holdout {t1:.3} s ({:.3}×), with shadows and the \
-         shadow pass {t2:.3} s ({:.3}×), with shadows alone {t3:.3} s ({:.3}×)",
+         shadow pass {t2:.3} s ({:.3}×), with shadows alone {t3:.3} s ({:.3}×), with the \
+         holdout and an HDRI {t4:.3} s ({:.3}×)",
         t1 / t0,
         t2 / t0,
-        t3 / t0
+        t3 / t0,
+        t4 / t0
     );
     let (plain, f, g) = frames.unwrap();
     let layer = f.holdout.as_ref().unwrap();
