@@ -13,6 +13,7 @@ pub mod locate;
 pub mod transform;
 pub mod usd_camera;
 pub mod usd_read;
+pub mod usd_stage;
 pub mod usda_text;
 
 use std::path::Path;
