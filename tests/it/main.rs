@@ -36,3 +36,4 @@ mod scene;
 mod sheets;
 mod surfaces;
 mod usd_camera;
+mod usd_holdouts;

@@ -396,7 +396,7 @@ fn a_chan_camera_projects_as_its_keyframes() {
 }
 
 /// The python with Pixar's `pxr` (as `export` finds it), or `None` after skipping.
-fn usd_python() -> Option<PathBuf> {
+pub(crate) fn usd_python() -> Option<PathBuf> {
     let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/usd-venv/bin/python");
     let python = std::env::var_os("NEPHELE_USD_PYTHON")
         .map(PathBuf::from)

@@ -5,6 +5,7 @@
 //!
 //! ```ron
 //! holdouts: [(mesh: "hill.obj", transform: (up: Z, scale: 0.01), shadows: true)],
+//! holdouts: [(mesh: "set.usdc", prim: "/World/hill")],
 //! ground: (height: 0.0, shadow_pass: true),
 //! ```
 
@@ -23,8 +24,12 @@ use crate::scene::resume::canonical::Encoder;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HoldoutSpec {
-    /// The mesh (OBJ, PLY, OFF or STL; relative to the scene file's folder) or `builtin:NAME`.
+    /// The mesh (OBJ, PLY, OFF, STL or a USD stage; relative to the scene file's folder) or
+    /// `builtin:NAME`.
     pub mesh: String,
+    /// A USD stage's `Mesh` prim (default: every visible `Mesh` prim of the stage).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prim: Option<String>,
     /// Where it stands in the shot: the target's transform syntax (default: as modelled).
     #[serde(default)]
     pub transform: TargetTransform,
@@ -79,6 +84,22 @@ pub fn load(
     e.str("surfaces").len(holdouts.len());
     let mut meshes = Vec::with_capacity(holdouts.len());
     for (i, h) in holdouts.iter().enumerate() {
+        let at_prim = |message: String| {
+            let (line, column) = locate_prim(text, &h.mesh, h.prim.as_deref().unwrap_or(""));
+            SceneError::File(FileError::Parse {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: format!("holdouts[{i}].prim: {message}"),
+            })
+        };
+        let usd = super::usd_mesh::is_usd(&h.mesh);
+        if h.prim.is_some() && !usd {
+            return Err(at_prim(format!(
+                "{}: `prim` names a prim of a USD stage (.usd, .usda, .usdc, .usdz)",
+                h.mesh
+            )));
+        }
         let mesh = if h.mesh.starts_with("builtin:") {
             crate::mesh::load(&h.mesh).map(|m| m.mesh)
         } else {
@@ -93,7 +114,17 @@ pub fn load(
                     ),
                 ));
             }
-            crate::mesh::io::read_mesh(&full).and_then(|m| m.validate(&full).map(|()| m))
+            if usd {
+                let mesh = super::usd_mesh::read(&full, h.prim.as_deref()).map_err(|e| {
+                    match (e.field, &h.prim) {
+                        (super::usd_stage::Field::Prim, Some(_)) => at_prim(e.message),
+                        _ => located(i, &h.mesh, e.message),
+                    }
+                })?;
+                mesh.validate(&full).map(|()| mesh)
+            } else {
+                crate::mesh::io::read_mesh(&full).and_then(|m| m.validate(&full).map(|()| m))
+            }
         }
         .map_err(|err| located(i, &h.mesh, format!("{}: {err}", h.mesh)))?;
         let positions: Vec<_> = mesh
@@ -140,4 +171,19 @@ pub fn load(
         located(i, &name, format!("{name}: {message}"))
     })?;
     Ok(Some(Arc::new(surfaces)))
+}
+
+/// The line and column of holdout `mesh`'s `prim` value in the scene `text` (the first
+/// `"prim"` after the first `"mesh"` in `holdouts`).
+fn locate_prim(text: &str, mesh: &str, prim: &str) -> (usize, usize) {
+    let mut at = text.find("holdouts").unwrap_or(0);
+    for value in [mesh, prim] {
+        if let Some(p) = text[at..].find(&format!("\"{value}\"")) {
+            at += p;
+        }
+    }
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
 }

@@ -12,7 +12,9 @@ pub mod holdouts;
 pub mod locate;
 pub mod transform;
 pub mod usd_camera;
+pub mod usd_mesh;
 pub mod usd_read;
+pub mod usd_stage;
 pub mod usda_text;
 
 use std::path::Path;
@@ -389,7 +391,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     if let Some(i) = s.holdouts.iter().position(|h| h.mesh.trim().is_empty()) {
         return Err(bad(
             "holdouts",
-            format!("holdouts[{i}].mesh is empty; name a mesh file (OBJ, PLY, OFF or STL)"),
+            format!("holdouts[{i}].mesh is empty; name a mesh file (OBJ, PLY, OFF, STL or USD)"),
         ));
     }
     s.camera.validate().map_err(|e| bad(e.field, e.message))?;
