@@ -186,12 +186,10 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                     coverage,
                     motion,
                 );
-                if t_hold < f32::INFINITY {
-                    r.holdout = 1.0;
-                }
-                if let (Some(s), Some(sh)) = (surfaces, shadow.as_mut()) {
-                    r.shadow = surface_rays::shadow(s, medium, sh, &ray, t_hold, to_sun, jitter);
-                }
+                let shadow = shadow.as_mut();
+                surface_rays::mark(
+                    &mut r, surfaces, medium, shadow, &ray, t_hold, to_sun, jitter,
+                );
                 r
             };
             let mut sum = PixelSum::new();

@@ -352,13 +352,11 @@ pub(crate) fn render_slices(
                     coverage,
                     motion,
                 );
-                if t_hold < f32::INFINITY {
-                    r.holdout = 1.0;
-                }
-                if let (Some(surf), Some(sh)) = (surfaces, scratch.shadow.get_mut(j)) {
+                let mut shadow = scratch.shadow.get_mut(j);
+                if let Some(sh) = shadow.as_deref_mut() {
                     m.set_time_offset(sh, dt);
-                    r.shadow = surface_rays::shadow(surf, m, sh, &ray, t_hold, to_sun, jitter);
                 }
+                surface_rays::mark(&mut r, surfaces, m, shadow, &ray, t_hold, to_sun, jitter);
                 sum.add(&r);
             }
             (sum.mean(rays), rays)

@@ -1,7 +1,7 @@
 //! What the camera's rays ask of the shot's surfaces ([`crate::render::Surfaces`]): where a ray
 //! stops at a holdout ([`stop`]), whether a pixel lies on a holdout's edge (its corners
 //! disagree: [`TileHoldouts::pixel`]; it then traces [`HOLDOUT_EDGE_RAYS`] more rays), and the
-//! shadow pass's value for a ray ([`shadow`]).
+//! shadow pass's value for a ray ([`shadow`]); [`mark`] puts both on a ray's result.
 //!
 //! A tile whose frustum misses every holdout's bounding ball casts nothing: its pixels are
 //! marched exactly as without holdouts (the same bits). Inside an active tile the pixel
@@ -10,6 +10,7 @@
 use glam::Vec3A;
 
 use crate::render::camera::{CameraRays, Frustum, Ray};
+use crate::render::integrator::PixelResult;
 use crate::render::integrator::march::optical_depth;
 use crate::render::medium::Medium;
 use crate::render::output::film::Region;
@@ -98,6 +99,30 @@ pub(crate) fn stop(surfaces: Option<&Surfaces>, corners: Corners, ray: &Ray) -> 
     match surfaces {
         Some(s) if corners != Corners::None => s.holdout_hit(ray),
         _ => f32::INFINITY,
+    }
+}
+
+/// What the surfaces add to camera `ray`'s result `r`: the `holdout` layer's share (1 when a
+/// holdout stopped the ray at `t_hold`) and, with the shadow pass (`shadow_scratch`: the
+/// medium begun on [`Frustum::EVERYTHING`]), its value ([`shadow`]). The one rule for a still
+/// and a blurred frame's rays.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn mark<M: Medium>(
+    r: &mut PixelResult,
+    surfaces: Option<&Surfaces>,
+    medium: &M,
+    shadow_scratch: Option<&mut M::Scratch>,
+    ray: &Ray,
+    t_hold: f32,
+    to_sun: Vec3A,
+    jitter: f32,
+) {
+    if t_hold < f32::INFINITY {
+        r.holdout = 1.0;
+    }
+    if let (Some(s), Some(scratch)) = (surfaces, shadow_scratch) {
+        r.shadow = shadow(s, medium, scratch, ray, t_hold, to_sun, jitter);
     }
 }
 
