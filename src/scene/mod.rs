@@ -209,6 +209,15 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let mut file = file::parse(path, text)?;
     file::validate(path, &file).map_err(|e| e.located(text))?;
     let base = path.parent().unwrap_or(Path::new(""));
+    // A file the scene names that cannot be read: an error at that field, located in the text.
+    let invalid_at = |field: &str, message: String| {
+        SceneError::Invalid {
+            path: path.to_path_buf(),
+            field: field.into(),
+            message,
+        }
+        .located(text)
+    };
     let resolve = |p: &str| -> Result<String, SceneError> {
         if p.starts_with("builtin:") {
             return Ok(p.to_string());
@@ -230,14 +239,8 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
     if let file::CameraSpec::Chan(c) = &mut file.camera {
         let full = base.join(&c.file);
         let frames = file.shot.start_frame..=file.shot.last_frame();
-        c.load(&full, frames).map_err(|message| {
-            SceneError::Invalid {
-                path: path.to_path_buf(),
-                field: "camera.file".into(),
-                message,
-            }
-            .located(text)
-        })?;
+        c.load(&full, frames)
+            .map_err(|message| invalid_at("camera.file", message))?;
         c.file = full.to_string_lossy().into_owned();
     }
     // So is a USD camera's every frame.
@@ -249,25 +252,14 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 file::usd_read::Field::File => "camera.file",
                 file::usd_read::Field::Prim => "camera.prim",
             };
-            SceneError::Invalid {
-                path: path.to_path_buf(),
-                field: field.into(),
-                message: e.message,
-            }
-            .located(text)
+            invalid_at(field, e.message)
         })?;
         c.file = full.to_string_lossy().into_owned();
     }
     // The plate's light is read now: a missing or bad map is an error at `sky.file`.
     if let crate::render::Sky::Environment(env) = &mut file.sky {
-        env.load(base).map_err(|message| {
-            SceneError::Invalid {
-                path: path.to_path_buf(),
-                field: "sky.file".into(),
-                message,
-            }
-            .located(text)
-        })?;
+        env.load(base)
+            .map_err(|message| invalid_at("sky.file", message))?;
         // `sun_from_map`: the map's sun is the scene's sun.
         if let Some(sun) = env.map_sun() {
             file.sun = sun;
