@@ -22,6 +22,7 @@ pub mod morph;
 pub mod pieces;
 mod repulsion;
 pub mod stats;
+pub mod target_motion;
 pub mod velocity;
 
 use glam::{DQuat, DVec3};
@@ -35,6 +36,7 @@ pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;
 pub use morph::{MorphConfig, MorphPlan};
+pub use target_motion::{PlacementKey, Similarity, TargetMotion};
 pub use velocity::{BlobMotion, VelocityField};
 
 /// Errors of the animation stage: settings that cannot produce an animation.
@@ -237,12 +239,10 @@ pub fn plan_with_source<S>(
             timeline,
             seed,
         )),
-        Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
-            c,
-            &model.blobs,
-            model.threshold,
-            timeline,
-        )),
+        Animation::Diffusion(c) => Plan::Diffusion({
+            c.check_target(&model.blobs)?;
+            DiffusionPlan::new(c, &model.blobs, model.threshold, timeline)
+        }),
         Animation::Morph(c) => {
             let source = source.ok_or(AnimateError::MissingSource)?;
             Plan::Morph(MorphPlan::new(c, &source.blobs, &model.blobs, timeline))

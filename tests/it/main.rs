@@ -28,6 +28,7 @@ mod integrity;
 mod look;
 mod mesh_io;
 mod mitsuba;
+mod moving;
 mod polygonize;
 mod readme_defaults;
 mod render;
