@@ -132,6 +132,30 @@ fn a_keyed_target_carries_the_cloud_and_vel_is_the_keyed_motion() {
         worst < 1e-5,
         "API vel differs from the keyed motion by {worst}"
     );
+    // The shutter (motion blur) carries the motion too: each time sample's blobs are the cloud
+    // at that time, their centres moving at the keyed motion.
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(
+        &path,
+        text.replace("seconds: 1.0)", "seconds: 1.0, shutter: 0.5)"),
+    )
+    .unwrap();
+    let blurred = open(&path);
+    let shutter = blurred
+        .shutter(12, 4)
+        .unwrap()
+        .expect("a moving cloud is blurred");
+    assert_eq!(shutter.samples.len(), 4);
+    for sample in &shutter.samples {
+        let bp = blurred.prepared().unwrap();
+        let at = bp.direction.at(&bp.plan, t + sample.offset);
+        assert_eq!(sample.blobs, at);
+        for (b, v) in sample.blobs.iter().zip(&sample.velocity) {
+            let want = keyed_velocity(t + sample.offset, b.center);
+            assert!((*v - want).length() < 1e-6 * want.length(), "{v} vs {want}");
+        }
+    }
+    std::fs::write(&path, text).unwrap();
     // The VDB, read by OpenVDB: every active voxel.
     let out = dir.join("out");
     render_vdb(&path, &out, "13");
