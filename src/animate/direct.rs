@@ -6,7 +6,9 @@
 //! billows are anchored to the blobs' frames, so they drift with them. Velocities are the same
 //! centred difference of these blobs in the shot's time ([`VelocityField::of_path`]), so they
 //! hold the wind and follow the retimed speed (`v = ds/dt · v_scheme + wind`, the chain rule).
-//! Without wind and retime the blobs and velocities are the plan's own, bit for bit.
+//! A deforming target ([`super::deform`]) carries each blob with the surface around it, at the
+//! shot's time, before the wind. Without wind, retime and deformation the blobs and velocities
+//! are the plan's own, bit for bit.
 //!
 //! The retime's progress is a fraction of the scheme's own motion (0 = its first pose, 1 = the
 //! target formed: the end of the motion, `hold_seconds` before the shot's end as planned), so
@@ -152,7 +154,7 @@ impl Timing {
     }
 }
 
-/// How the shot plays its plan: wind and retime (both optional).
+/// How the shot plays its plan: wind, retime and a deforming target (all optional).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Direction {
     /// The wind, if any.
@@ -161,6 +163,9 @@ pub struct Direction {
     pub timing: Option<Timing>,
     /// Seconds of the scheme's motion (progress 1), from the plan's timeline.
     pub motion_seconds: f64,
+    /// The deforming target's motion of the blobs (in the shot's time, not the retimed
+    /// scheme's: the mesh sequence plays at the shot's frames), if the target bends.
+    pub deform: Option<std::sync::Arc<super::Deformation>>,
 }
 
 impl Direction {
@@ -171,12 +176,13 @@ impl Direction {
             wind,
             timing,
             motion_seconds: plan.timeline().motion_seconds(),
+            deform: None,
         }
     }
 
     /// True when the shot plays the plan as planned (the blobs are the plan's, bit for bit).
     pub fn is_plain(&self) -> bool {
-        self.wind.is_none() && self.timing.is_none()
+        self.wind.is_none() && self.timing.is_none() && self.deform.is_none()
     }
 
     /// The scheme's time at the shot's time `t` (seconds): `t` without a retime, else the
@@ -196,6 +202,9 @@ impl Direction {
     /// The blobs at the shot's time `t` seconds (any time, also between frames).
     pub fn at(&self, plan: &Plan, t: f64) -> Vec<Blob> {
         let mut blobs = plan.at(self.scheme_time(t));
+        if let Some(d) = &self.deform {
+            d.apply(&mut blobs, t);
+        }
         if self.wind.is_some() {
             let d = self.drift(t);
             for b in &mut blobs {

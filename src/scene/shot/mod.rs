@@ -418,11 +418,42 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
         scene: scene.path.clone(),
         source,
     })?;
+    let mut direction = animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone());
+    let mut bounds = bounds;
+    if let Some(seq) = &scene.deforming {
+        let deformation = deformation(scene, seq, &plan);
+        bounds = bounds.union(deformation.bounds(&plan.frame(timeline.frames - 1)));
+        direction.deform = Some(std::sync::Arc::new(deformation));
+    }
     Ok(Prepared {
         model,
         bounds,
         origin,
-        direction: animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone()),
+        direction,
         plan,
     })
+}
+
+/// The deforming target's motion: the sequence placed by the scene's transform, its frames at
+/// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target.
+fn deformation(
+    scene: &Scene,
+    seq: &crate::mesh::sequence::MeshSequence,
+    plan: &Plan,
+) -> animate::Deformation {
+    let shot = &scene.file.shot;
+    let t = &scene.file.transform;
+    let frames: Vec<Vec<glam::DVec3>> = seq
+        .frames
+        .iter()
+        .map(|f| f.iter().map(|&p| t.apply_point(p)).collect())
+        .collect();
+    let first = if seq.from_shot_start {
+        0.0
+    } else {
+        shot.start_frame as f64
+    };
+    let times: Vec<f64> = seq.numbers.iter().map(|n| (n - first) / shot.fps).collect();
+    let formed = plan.frame(plan.timeline().frames - 1);
+    animate::Deformation::new(&formed, &frames, &times)
 }
