@@ -215,13 +215,18 @@ pub fn frame_files(pattern: &str) -> Result<Vec<(u64, PathBuf)>, MeshError> {
         ));
     }
     let (prefix, suffix) = (&name[..first], &name[last + 1..]);
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+    // Files are named as the pattern is (no `./` before a bare file name).
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let listed = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir.as_path()
     };
-    let entries = std::fs::read_dir(&dir).map_err(|source| MeshError::Io {
-        path: dir.clone(),
-        source,
+    let entries = std::fs::read_dir(listed).map_err(|e| {
+        invalid(format!(
+            "the sequence's folder {} cannot be read: {e}",
+            listed.display()
+        ))
     })?;
     let mut found = Vec::new();
     for e in entries.flatten() {
@@ -253,15 +258,17 @@ pub fn frame_files(pattern: &str) -> Result<Vec<(u64, PathBuf)>, MeshError> {
     }
     if let Some(w) = found.windows(2).find(|w| w[1].0 != w[0].0 + 1) {
         let (a, b) = (found[0].0, found[found.len() - 1].0);
+        let (gap, end) = (w[0].0 + 1, w[1].0 - 1);
+        let gap_frames = if gap == end {
+            format!("frame {gap} is missing")
+        } else {
+            format!("frames {gap} to {end} are missing")
+        };
         return Err(invalid(format!(
-            "frame {} is missing: {} does not exist, but the sequence runs from {} to {} \
-             (frames {}–{} are missing)",
-            w[0].0 + 1,
-            spelled(w[0].0 + 1).display(),
+            "{gap_frames}: {} does not exist, but the sequence runs from {} to {}",
+            spelled(gap).display(),
             spelled(a).display(),
             spelled(b).display(),
-            w[0].0 + 1,
-            w[1].0 - 1
         )));
     }
     Ok(found)
