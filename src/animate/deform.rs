@@ -228,6 +228,29 @@ impl Deformation {
         }
     }
 
+    /// How far blob `i`'s anchors at shot time `t` are from its affine map of them (the
+    /// weighted RMS distance, world units): how much the surface there leaves what the blob
+    /// can follow (0 for a locally affine motion).
+    pub fn residual(&self, i: usize, t: f64) -> f64 {
+        let Some(k) = self.blobs.get(i) else {
+            return 0.0;
+        };
+        let (a, b, u) = self.bracket(t);
+        let map = self.map_between(i, a, b, u);
+        let mean = k.rest_center + map.displacement - map.linear * (k.rest_center - k.rest_mean);
+        let anchors = &self.anchors[k.start as usize..(k.start + k.len) as usize];
+        let (fa, fb) = (&self.tracks[a], &self.tracks[b]);
+        anchors
+            .iter()
+            .map(|x| {
+                let (p, q) = (fa[x.vertex as usize], fb[x.vertex as usize]);
+                let at = p + (q - p) * u;
+                x.weight * (at - (mean + map.linear * x.offset)).length_squared()
+            })
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// Carry `blobs` (a frame of the plan, index = identity) to shot time `t`: blob `i` by
     /// its anchors' map ([`LocalMap::carry`]); blobs beyond the anchored ones stay.
     pub fn apply(&self, blobs: &mut [Blob], t: f64) {
