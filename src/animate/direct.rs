@@ -8,7 +8,9 @@
 //! billows are anchored to the blobs' frames, so they drift with them. Velocities are the same
 //! centred difference of these blobs in the shot's time ([`VelocityField::of_path`]), so they
 //! hold the wind and follow the retimed speed (`v = ds/dt · v_scheme + wind`, the chain rule).
-//! Without wind and retime the blobs and velocities are the plan's own, bit for bit.
+//! A deforming target ([`super::deform`]) carries each blob with the surface around it, at the
+//! shot's time, before the wind. Without wind, retime and deformation the blobs and velocities
+//! are the plan's own, bit for bit.
 //!
 //! The retime's progress is a fraction of the scheme's own motion (0 = its first pose, 1 = the
 //! target formed: the end of the motion, `hold_seconds` before the shot's end as planned), so
@@ -155,7 +157,8 @@ impl Timing {
     }
 }
 
-/// How the shot plays its plan: wind, retime and the target's motion (all optional).
+/// How the shot plays its plan: wind, retime, a deforming target and the target's keyed motion
+/// (all optional).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Direction {
     /// The wind, if any.
@@ -166,6 +169,9 @@ pub struct Direction {
     pub motion: Option<TargetMotion>,
     /// Seconds of the scheme's motion (progress 1), from the plan's timeline.
     pub motion_seconds: f64,
+    /// The deforming target's motion of the blobs (in the shot's time, not the retimed
+    /// scheme's: the mesh sequence plays at the shot's frames), if the target bends.
+    pub deform: Option<std::sync::Arc<super::Deformation>>,
 }
 
 impl Direction {
@@ -177,6 +183,7 @@ impl Direction {
             timing,
             motion: None,
             motion_seconds: plan.timeline().motion_seconds(),
+            deform: None,
         }
     }
 
@@ -187,7 +194,10 @@ impl Direction {
 
     /// True when the shot plays the plan as planned (the blobs are the plan's, bit for bit).
     pub fn is_plain(&self) -> bool {
-        self.wind.is_none() && self.timing.is_none() && self.motion.is_none()
+        self.wind.is_none()
+            && self.timing.is_none()
+            && self.motion.is_none()
+            && self.deform.is_none()
     }
 
     /// The target's motion at `t` seconds (the identity when it stays put).
@@ -228,6 +238,9 @@ impl Direction {
     /// The blobs at the shot's time `t` seconds (any time, also between frames).
     pub fn at(&self, plan: &Plan, t: f64) -> Vec<Blob> {
         let mut blobs = plan.at(self.scheme_time(t));
+        if let Some(d) = &self.deform {
+            d.apply(&mut blobs, t);
+        }
         if let Some(m) = &self.motion {
             m.carry(t).apply(&mut blobs);
         }

@@ -15,6 +15,7 @@
 
 pub mod aggregation;
 pub mod cumulus;
+pub mod deform;
 pub mod diffusion;
 pub mod direct;
 pub mod mattes;
@@ -32,6 +33,7 @@ use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
+pub use deform::Deformation;
 pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;

@@ -18,6 +18,7 @@ mod bench;
 mod builtin;
 mod codec;
 mod decompose;
+mod deform;
 mod environment;
 mod eval;
 mod export;

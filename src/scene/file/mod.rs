@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod chan;
+pub mod deforming;
 pub mod holdouts;
 pub mod locate;
 pub mod transform;

@@ -444,8 +444,14 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
             source,
         },
     })?;
-    let direction = animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone())
+    let mut direction = animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone())
         .with_motion(scene.file.transform.motion());
+    let mut bounds = bounds;
+    if let Some(seq) = &scene.deforming {
+        let deformation = deformation(scene, seq, &plan);
+        bounds = bounds.union(deformation.bounds(&plan.frame(timeline.frames - 1)));
+        direction.deform = Some(std::sync::Arc::new(deformation));
+    }
     // A target that moves is framed over its whole path (its box carried to every frame).
     let framing = match &direction.motion {
         None => bounds,
@@ -481,4 +487,28 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
         direction,
         plan,
     })
+}
+
+/// The deforming target's motion: the sequence placed by the scene's transform, its frames at
+/// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target.
+fn deformation(
+    scene: &Scene,
+    seq: &crate::mesh::sequence::MeshSequence,
+    plan: &Plan,
+) -> animate::Deformation {
+    let shot = &scene.file.shot;
+    let t = &scene.file.transform;
+    let frames: Vec<Vec<glam::DVec3>> = seq
+        .frames
+        .iter()
+        .map(|f| f.iter().map(|&p| t.apply_point(p)).collect())
+        .collect();
+    let first = if seq.from_shot_start {
+        0.0
+    } else {
+        shot.start_frame as f64
+    };
+    let times: Vec<f64> = seq.numbers.iter().map(|n| (n - first) / shot.fps).collect();
+    let formed = plan.frame(plan.timeline().frames - 1);
+    animate::Deformation::new(&formed, &frames, &times)
 }

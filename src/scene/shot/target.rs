@@ -238,7 +238,11 @@ fn load(
             samples,
             seed,
         } => {
-            let identity: Vec<u8> = if mesh.starts_with("builtin:") {
+            // A deforming target is fitted on its rest frame (the sequence's first).
+            let rest = scene.deforming.as_deref().filter(|_| check);
+            let identity: Vec<u8> = if let Some(seq) = rest {
+                seq.rest_identity()
+            } else if mesh.starts_with("builtin:") {
                 mesh.as_bytes().to_vec()
             } else {
                 crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
@@ -264,7 +268,11 @@ fn load(
             {
                 return Ok((m, TargetOrigin::Cached(cache)));
             }
-            let loaded = crate::mesh::load(mesh).map_err(|source| SceneError::Mesh {
+            let loaded = match rest {
+                Some(seq) => crate::mesh::prepare(seq.rest(), &seq.rest_name),
+                None => crate::mesh::load(mesh),
+            }
+            .map_err(|source| SceneError::Mesh {
                 scene: scene.path.clone(),
                 source,
             })?;
