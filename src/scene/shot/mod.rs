@@ -11,6 +11,7 @@ pub mod frames;
 pub mod request;
 pub mod run;
 pub mod stats;
+pub mod story;
 pub mod target;
 pub mod usd;
 
@@ -255,8 +256,12 @@ impl Shot {
         if let Some(p) = self.prepared.get() {
             return Ok(p);
         }
-        let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
-        let prepared = plan(&self.scene, model, origin)?;
+        let prepared = if self.scene.file.story.is_empty() {
+            let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
+            plan(&self.scene, model, origin)?
+        } else {
+            story::plan(&self.scene, &self.cache_dir)?
+        };
         // The diffusion's blend path, if another process made it for this very plan.
         super::resume::blend_cache::load(&self.cache_dir, &prepared.plan);
         Ok(self.prepared.get_or_init(|| prepared))
@@ -396,7 +401,9 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     scene.file.transform.apply(&mut model.blobs);
     // Before planning: a target the renderer cannot draw is refused, not rendered empty.
     let bounds = blob_bounds(&model.blobs);
-    self::target::check_target_box(scene, &bounds, &self::target::spec_name(&scene.file.target))?;
+    if let Some(target) = &scene.file.target {
+        self::target::check_target_box(scene, &bounds, &self::target::spec_name(target))?;
+    }
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,
