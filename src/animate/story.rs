@@ -17,7 +17,9 @@
 //! and a target blob that is dead get new slots. So when a beat starts, its blobs are the last
 //! beat's final blobs in the same slots: the shape, the billows (seeded per blob index and
 //! anchored to each blob) and the velocities run on without a pop. Slots the current beat does
-//! not use are hidden ([`HIDDEN`]). The last frame holds the last target's blobs in their slots.
+//! not use are hidden ([`HIDDEN`]). The slots are numbered from the last beat back, so the last
+//! beat's entries keep their own indices: the last frame starts with the last target's blobs
+//! exactly, as every scheme's does (the hidden slots follow).
 //!
 //! **Time.** The story's [`Timeline`] is the shot's, with the motion ending at the last beat's
 //! `end` (progress 1 = the last target formed), so a scene's `timing` retimes the whole story as
@@ -206,45 +208,51 @@ impl StoryPlan {
             beat_timeline(seconds, fps),
             seed,
         )?;
-        let n = plan.at(0.0).len();
-        let mut beats = vec![Beat {
-            plan,
-            start: first_times.start,
-            slots: (0..n).collect(),
-        }];
-        let mut slots = n;
+        let mut plans = vec![(plan, first_times.start)];
+        // Per later beat, the blob of the target before that each entry starts as.
+        let mut sources: Vec<Vec<Option<usize>>> = Vec::with_capacity(later.len());
         let mut before = &first_target.blobs;
         for b in later {
+            let lattice = Lattice::for_target(&blob_bounds(&b.target.blobs), PACE_CELL);
             let morph = MorphPlan::in_place(
                 &morph_config(b.stagger),
                 before,
                 &b.target.blobs,
                 beat_timeline(b.times.end - b.times.start, fps),
-            );
-            // The target before sits in the first entries of the last beat's list.
-            let last = &beats[beats.len() - 1].slots;
-            let entry_slots = morph
-                .sources()
-                .iter()
-                .map(|s| match s {
-                    Some(s) => last[*s],
-                    None => {
-                        slots += 1;
-                        slots - 1
-                    }
-                })
-                .collect();
-            let lattice = Lattice::for_target(&blob_bounds(&b.target.blobs), PACE_CELL);
-            let morph = morph
-                .kept_in_one_piece(b.target.threshold)
-                .paced_by_volume(b.target.threshold, lattice);
-            beats.push(Beat {
-                plan: Plan::Morph(morph),
-                start: b.times.start,
-                slots: entry_slots,
-            });
+            )
+            .kept_in_one_piece(b.target.threshold)
+            .paced_by_volume(b.target.threshold, lattice);
+            sources.push(morph.sources().to_vec());
+            plans.push((Plan::Morph(morph), b.times.start));
             before = &b.target.blobs;
         }
+        // Slots, numbered from the last beat back: its entries keep their own indices (so the
+        // last target's hold is its own blob list), and each target's blob takes the slot of
+        // the entry of the next beat that starts as it (the target before sits in the first
+        // entries of a beat's list); entries nothing continues get new slots.
+        let lengths: Vec<usize> = plans.iter().map(|(p, _)| p.at(0.0).len()).collect();
+        let last = plans.len() - 1;
+        let mut slots_of: Vec<Vec<usize>> = vec![Vec::new(); plans.len()];
+        slots_of[last] = (0..lengths[last]).collect();
+        let mut slots = lengths[last];
+        for i in (0..last).rev() {
+            let mut own = vec![usize::MAX; lengths[i]];
+            for (entry, source) in sources[i].iter().enumerate() {
+                if let Some(s) = *source {
+                    own[s] = slots_of[i + 1][entry];
+                }
+            }
+            for slot in own.iter_mut().filter(|s| **s == usize::MAX) {
+                *slot = slots;
+                slots += 1;
+            }
+            slots_of[i] = own;
+        }
+        let beats = plans
+            .into_iter()
+            .zip(slots_of)
+            .map(|((plan, start), slots)| Beat { plan, start, slots })
+            .collect();
         let motion_end = times[times.len() - 1].end;
         Ok(StoryPlan {
             beats,
@@ -439,6 +447,9 @@ mod tests {
         let tl = plan.timeline();
         assert!((tl.motion_seconds() - 5.5).abs() < 1e-12);
         assert_eq!(live(&plan.frame(144)), live(&targets[2].blobs));
+        // The last target keeps its own indices: the last frame starts with it, bit for bit.
+        let n = targets[2].blobs.len();
+        assert_eq!(&plan.frame(144)[..n], &targets[2].blobs[..]);
         assert_eq!(plan.beat_at(0.0), 0);
         assert_eq!(plan.beat_at(2.49), 0);
         assert_eq!(plan.beat_at(2.5), 1);
