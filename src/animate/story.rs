@@ -457,6 +457,42 @@ mod tests {
     }
 
     #[test]
+    fn timing_retimes_the_whole_story_and_wind_carries_it() {
+        use crate::animate::{Direction, Timing, TimingKey, Wind};
+        let (plan, targets) = story();
+        let plan = Plan::Story(plan);
+        // Progress 1 at 1 s: the last target formed (the story's end, 5.5 s of it); 0.4 is
+        // 2.2 s of the story, in the first target's hold (2 to 2.5 s).
+        let key = |time, progress| TimingKey {
+            time,
+            progress,
+            ease: Default::default(),
+        };
+        let timing = Timing::try_from(vec![key(0.0, 0.0), key(1.0, 1.0)]).unwrap();
+        let wind = Wind {
+            velocity: DVec3::new(0.5, 0.0, 0.0),
+        };
+        let d = Direction::new(&plan, Some(wind), Some(timing));
+        let moved = |blobs: &[Blob], by: DVec3| -> Vec<Blob> {
+            blobs
+                .iter()
+                .map(|b| Blob {
+                    center: b.center + by,
+                    ..*b
+                })
+                .collect()
+        };
+        assert_eq!(
+            live(&d.at(&plan, 1.0)),
+            live(&moved(&targets[2].blobs, DVec3::new(0.5, 0.0, 0.0)))
+        );
+        assert_eq!(
+            live(&d.at(&plan, 0.4)),
+            live(&moved(&targets[0].blobs, DVec3::new(0.2, 0.0, 0.0)))
+        );
+    }
+
+    #[test]
     fn bad_times_are_refused_with_their_field() {
         let t = |start, end| BeatTimes { start, end };
         let cases = [
