@@ -60,6 +60,18 @@ impl Aabb {
         }
     }
 
+    /// The eight corners (bit 0 picks x, bit 1 y, bit 2 z from `max`).
+    pub fn corners(&self) -> [DVec3; 8] {
+        std::array::from_fn(|i| {
+            let pick = |bit: usize, lo: f64, hi: f64| if i & bit == 0 { lo } else { hi };
+            DVec3::new(
+                pick(1, self.min.x, self.max.x),
+                pick(2, self.min.y, self.max.y),
+                pick(4, self.min.z, self.max.z),
+            )
+        })
+    }
+
     /// Centre point.
     pub fn center(&self) -> DVec3 {
         0.5 * (self.min + self.max)

@@ -364,7 +364,7 @@ impl AggregationPlan {
 }
 
 /// Uniform Catmull–Rom segment from `p1` (t = 0) to `p2` (t = 1).
-fn catmull_rom(p0: DVec3, p1: DVec3, p2: DVec3, p3: DVec3, t: f64) -> DVec3 {
+pub(crate) fn catmull_rom(p0: DVec3, p1: DVec3, p2: DVec3, p3: DVec3, t: f64) -> DVec3 {
     let t2 = t * t;
     let t3 = t2 * t;
     0.5 * ((2.0 * p1)

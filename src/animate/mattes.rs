@@ -8,6 +8,10 @@
 //! - **Morph**: `paired` (a source blob travelling into its target partner), `split` (a target
 //!   blob growing out of a paired one) and `merged` (a surplus source blob shrinking away).
 //!
+//! - **Story**: each blob's matte is its piece in the beat that brought it in, numbered by
+//!   target: `target1_category_II` (grown while the first target formed), `target2_split`
+//!   (grown out of the cloud while it turned into the second target).
+//!
 //! Blobs dead in the target (and so never shown) belong to no matte. The names are the same
 //! for every frame of a shot, so a compositor's selection holds across the sequence.
 
@@ -86,6 +90,22 @@ impl Plan {
                     .map(|r| r.map(str::to_string))
                     .collect(),
             ),
+            Plan::Story(p) => {
+                let mut pieces: Vec<Option<String>> = vec![None; p.slots()];
+                let mut named = vec![false; p.slots()];
+                for beat in 0..p.beats() {
+                    let m = p.beat(beat).0.mattes();
+                    for (&slot, &id) in p.beat_slots(beat).iter().zip(&m.of_blob) {
+                        if named[slot] {
+                            continue;
+                        }
+                        named[slot] = true;
+                        pieces[slot] = (id != NO_MATTE)
+                            .then(|| format!("target{}_{}", beat + 1, m.names[id as usize]));
+                    }
+                }
+                MatteNames::from_pieces(pieces)
+            }
         }
     }
 }

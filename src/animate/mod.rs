@@ -1,13 +1,13 @@
 //! Cloud animation schemes (paper §5.2; docs/ARCHITECTURE.md, Animation): aggregation (pieces
 //! of cloud gather into the target), diffusion (the target spreads from one piece) and morph
-//! (one blob model turns into another, e.g. [`cumulus`] into a duck); [`stats`] measures a
-//! frame's visible cloud.
+//! (one blob model turns into another, e.g. [`cumulus`] into a duck), and a [`story`] of
+//! targets in turn made of them; [`stats`] measures a frame's visible cloud.
 //!
 //! In: a fitted [`crate::blobby::BlobModel`], the scheme's settings and the shot's [`Timeline`].
 //! Out: a [`Plan`] that gives, per frame, the full blob list (index = blob identity, same length
 //! as the model — a morph appends the source blobs that merge away; hidden blobs have `B = 0`).
 //! The last frame equals the model's blobs exactly (bit-equal), whatever the scheme (a morph's
-//! merged blobs follow, hidden).
+//! merged blobs follow, hidden; a story's list is of slots, [`story`]).
 //!
 //! Time: frame `k` (0-based) of a shot of `n` frames at `fps` is at `k / fps` seconds. The motion
 //! ends `hold_seconds` before the last frame (the target then sits still); a shot shorter than
@@ -23,6 +23,7 @@ pub mod morph;
 pub mod pieces;
 mod repulsion;
 pub mod stats;
+pub mod story;
 pub mod target_motion;
 pub mod velocity;
 
@@ -38,6 +39,7 @@ pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;
 pub use morph::{MorphConfig, MorphPlan};
+pub use story::{BeatTimes, MorphBeat, StoryPlan};
 pub use target_motion::{PlacementKey, Similarity, TargetMotion};
 pub use velocity::{BlobMotion, VelocityField};
 
@@ -199,6 +201,8 @@ pub enum Plan {
     Diffusion(DiffusionPlan),
     /// Morph pairing and schedule.
     Morph(MorphPlan),
+    /// A sequence of targets: consecutive plans, one per target ([`story`]).
+    Story(StoryPlan),
 }
 
 /// Plan `animation` for `model` over `timeline`; every random choice derives from `seed`. A
@@ -253,10 +257,12 @@ pub fn plan_with_source<S>(
 }
 
 impl Plan {
-    /// The diffusion's plan, when the animation is one.
+    /// The diffusion's plan, when the animation is one (or a story's first target forms by
+    /// one).
     pub fn diffusion(&self) -> Option<&DiffusionPlan> {
         match self {
             Plan::Diffusion(p) => Some(p),
+            Plan::Story(s) => s.beat(0).0.diffusion(),
             _ => None,
         }
     }
@@ -267,6 +273,7 @@ impl Plan {
             Plan::Aggregation(p) => p.frame(k),
             Plan::Diffusion(p) => p.frame(k),
             Plan::Morph(p) => p.frame(k),
+            Plan::Story(p) => p.frame(k),
         }
     }
 
@@ -278,6 +285,7 @@ impl Plan {
             Plan::Aggregation(p) => p.at(t),
             Plan::Diffusion(p) => p.at(t),
             Plan::Morph(p) => p.at(t),
+            Plan::Story(p) => p.at(t),
         }
     }
 
@@ -287,6 +295,7 @@ impl Plan {
             Plan::Aggregation(p) => p.timeline(),
             Plan::Diffusion(p) => p.timeline(),
             Plan::Morph(p) => p.timeline(),
+            Plan::Story(p) => p.timeline(),
         }
     }
 }

@@ -16,10 +16,29 @@
 //!   one piece.
 //! - **Blob list.** Index `i < n` (the target's length) is target blob `i`; surplus source
 //!   blobs follow. The last frame is the target, followed by the merged blobs hidden (`B = 0`).
+//!   [`MorphPlan::sources`] says which source blob each entry starts as (a story keeps a blob's
+//!   identity from one target to the next by it, [`super::story`]).
+//! - **In place.** [`MorphPlan::in_place`] skips the alignment: a story's next morph starts
+//!   from the target on screen, where it is.
+//! - **One piece.** Straight paths between two shapes need not keep the cloud in one piece (a
+//!   duck into a torus knot breaks a loop off half way). [`MorphPlan::kept_in_one_piece`]
+//!   samples the motion at [`ONE_PIECE_KEYS`] keyframes, pulls each blob the cloud's field
+//!   does not join toward its nearest joined neighbour until it joins (the aggregation's rule,
+//!   [`super::pieces`]), and adds those pulls, zero at both ends, along a Catmull–Rom spline
+//!   through the keyframes (so velocities stay continuous). A story's morphs use it.
+//! - **Paced by volume.** Two shapes of different bulk lose (or gain) most of the difference
+//!   where the blobs stop overlapping, late in the motion. [`MorphPlan::paced_by_volume`]
+//!   measures the visible volume at [`PACE_KEYS`] points of the motion at plan time and gives
+//!   each interval time in proportion to `PACE_TIME_SHARE` of the time plus the rest by its share
+//!   of the volume change, so no frame changes the volume by much more than the average (at
+//!   most `1 / (1 − PACE_TIME_SHARE)` times it, between the sampled points).
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::aggregation::catmull_rom;
+use super::pieces::keep_in_one_piece;
+use super::stats::{Lattice, visible_volume};
 use super::{
     AnimateError, Timeline, blend_shape, blob_bounds, check_fraction, check_seconds, smoothstep,
 };
@@ -70,23 +89,52 @@ pub struct MorphPlan {
     /// Per entry of the blob list: where it starts and ends (shape and place).
     from: Vec<Blob>,
     to: Vec<Blob>,
+    /// Per entry: the source blob (index into the source model) it starts as; `None` for a
+    /// split blob (it starts at zero size) or a dead target blob.
+    origin: Vec<Option<usize>>,
     /// Per entry: start of its motion as a fraction of the motion, and its duration.
     start: Vec<f64>,
     span: f64,
     lead: f64,
     target: Vec<Blob>,
     timeline: Timeline,
+    /// Per keyframe `j` (at `j / ONE_PIECE_KEYS` of the motion), each entry's pull that keeps the
+    /// cloud in one piece; empty without [`MorphPlan::kept_in_one_piece`].
+    pulls: Vec<Vec<DVec3>>,
+    /// The motion's fraction at `j / PACE_KEYS` of its time; empty: the time itself.
+    pace: Vec<f64>,
 }
 
+/// Points of the motion at which [`MorphPlan::paced_by_volume`] measures the volume.
+pub const PACE_KEYS: usize = 24;
+
+/// Share of a paced morph's time spread evenly; the rest goes by the volume's change.
+pub const PACE_TIME_SHARE: f64 = 0.3;
+
+/// Keyframes over a morph's motion at which [`MorphPlan::kept_in_one_piece`] joins the cloud
+/// (about every other frame of a 3-second morph at 24 fps).
+pub const ONE_PIECE_KEYS: usize = 36;
+
 impl MorphPlan {
-    /// Plan the morph of `source` into `target` (config already validated).
+    /// Plan the morph of `source` into `target` (config already validated); the source is
+    /// first moved and scaled onto the target's box.
     pub fn new<S>(
         cfg: &MorphConfig<S>,
         source: &[Blob],
         target: &[Blob],
         timeline: Timeline,
     ) -> MorphPlan {
-        let source = align(source, target);
+        MorphPlan::in_place(cfg, &align(source, target), target, timeline)
+    }
+
+    /// Plan the morph of `source` into `target` where both are (no alignment: a story's next
+    /// morph starts from the target on screen). Config already validated.
+    pub fn in_place<S>(
+        cfg: &MorphConfig<S>,
+        source: &[Blob],
+        target: &[Blob],
+        timeline: Timeline,
+    ) -> MorphPlan {
         let s_live: Vec<usize> = (0..source.len()).filter(|&i| source[i].is_live()).collect();
         let t_live: Vec<usize> = (0..target.len()).filter(|&i| target[i].is_live()).collect();
         let cost = |a: usize, b: usize| source[s_live[a]].center.distance(target[t_live[b]].center);
@@ -134,7 +182,9 @@ impl MorphPlan {
         };
         let mut from = Vec::with_capacity(target.len());
         let mut to = Vec::with_capacity(target.len());
+        let mut origin = Vec::with_capacity(target.len());
         for (ti, t) in target.iter().enumerate() {
+            origin.push(partner_of_target[ti].filter(|_| t.is_live()));
             let start = if !t.is_live() {
                 *t
             } else if let Some(si) = partner_of_target[ti] {
@@ -159,10 +209,11 @@ impl MorphPlan {
             }
             // Merge into the target partner of the nearest paired source blob.
             let s = source[si];
-            let host = nearest(&paired_sources, &source, s.center)
+            let host = nearest(&paired_sources, source, s.center)
                 .and_then(|h| partner_of_source[h])
                 .map_or(s.center, |t| target[t].center);
             from.push(s);
+            origin.push(Some(si));
             to.push(Blob {
                 center: host,
                 semi_axes: DVec3::ZERO,
@@ -189,17 +240,82 @@ impl MorphPlan {
         MorphPlan {
             from,
             to,
+            origin,
             start,
             span: 1.0 - cfg.stagger,
             lead: cfg.lead_seconds,
             target: target.to_vec(),
             timeline,
+            pulls: Vec::new(),
+            pace: Vec::new(),
         }
+    }
+
+    /// This morph paced so that its visible volume (at iso-level `threshold`, on `lattice`)
+    /// changes about evenly over its time (see the module doc). Deterministic.
+    pub fn paced_by_volume(mut self, threshold: f64, lattice: Lattice) -> MorphPlan {
+        let keys = PACE_KEYS;
+        let volume: Vec<f64> = (0..=keys)
+            .map(|j| {
+                visible_volume(&self.shape(j as f64 / keys as f64), threshold, lattice).voxels
+                    as f64
+            })
+            .collect();
+        let change: Vec<f64> = volume.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        let total: f64 = change.iter().sum();
+        // Each interval's share of the time, then the time at each key.
+        let mut at = vec![0.0];
+        for c in &change {
+            let share = if total > 0.0 {
+                PACE_TIME_SHARE / keys as f64 + (1.0 - PACE_TIME_SHARE) * c / total
+            } else {
+                1.0 / keys as f64
+            };
+            at.push(at[at.len() - 1] + share);
+        }
+        // Invert: the motion's fraction at even steps of the time.
+        let end = at[keys];
+        self.pace = (0..=keys)
+            .map(|j| {
+                let tau = j as f64 / keys as f64 * end;
+                let k = at.windows(2).position(|w| tau <= w[1]).unwrap_or(keys - 1);
+                let f =
+                    ((tau - at[k]) / (at[k + 1] - at[k]).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+                (k as f64 + f) / keys as f64
+            })
+            .collect();
+        self.pace[0] = 0.0;
+        self.pace[keys] = 1.0;
+        self
+    }
+
+    /// This morph with the pulls that keep its cloud in one piece at iso-level `threshold` (see
+    /// the module doc). Deterministic.
+    pub fn kept_in_one_piece(mut self, threshold: f64) -> MorphPlan {
+        let keys = ONE_PIECE_KEYS;
+        let mut pulls = vec![vec![DVec3::ZERO; self.to.len()]; keys + 1];
+        for (j, pull) in pulls.iter_mut().enumerate().take(keys).skip(1) {
+            let mut blobs = self.pose(j as f64 / keys as f64);
+            let before: Vec<DVec3> = blobs.iter().map(|b| b.center).collect();
+            let live: Vec<usize> = (0..blobs.len()).filter(|&i| blobs[i].is_live()).collect();
+            keep_in_one_piece(&mut blobs, &live, threshold);
+            for (p, (b, c)) in pull.iter_mut().zip(blobs.iter().zip(&before)) {
+                *p = b.center - *c;
+            }
+        }
+        self.pulls = pulls;
+        self
     }
 
     /// The shot's timeline.
     pub fn timeline(&self) -> Timeline {
         self.timeline
+    }
+
+    /// Per entry of the blob list, the source blob (index into the source model's blobs) it
+    /// starts as: a paired or merged blob; `None` for a split blob or a dead target blob.
+    pub fn sources(&self) -> &[Option<usize>] {
+        &self.origin
     }
 
     /// Each entry's part in the morph (see [`super::mattes`]): `paired`, `split` (a target
@@ -235,6 +351,37 @@ impl MorphPlan {
         }
         let motion = (self.timeline.motion_seconds() - self.lead).max(1e-9);
         let u = ((t - self.lead) / motion).clamp(0.0, 1.0);
+        let u = if self.pace.is_empty() {
+            u
+        } else {
+            let keys = self.pace.len() - 1;
+            let x = u * keys as f64;
+            let j = (x.floor() as usize).min(keys - 1);
+            super::lerp(self.pace[j], self.pace[j + 1], x - j as f64)
+        };
+        self.shape(u)
+    }
+
+    /// The blobs at `u` of the motion (after the lead and the pace): on their straight paths,
+    /// pulled into one piece when the plan keeps it so.
+    fn shape(&self, u: f64) -> Vec<Blob> {
+        let mut blobs = self.pose(u);
+        if !self.pulls.is_empty() {
+            let keys = self.pulls.len() - 1;
+            let x = u * keys as f64;
+            let j = (x.floor() as usize).min(keys - 1);
+            let key = |k: isize| &self.pulls[k.clamp(0, keys as isize) as usize];
+            let j = j as isize;
+            let (p0, p1, p2, p3) = (key(j - 1), key(j), key(j + 1), key(j + 2));
+            for (i, b) in blobs.iter_mut().enumerate() {
+                b.center += catmull_rom(p0[i], p1[i], p2[i], p3[i], x - j as f64);
+            }
+        }
+        blobs
+    }
+
+    /// The blobs at `u` of the motion (after the lead), on their straight paths.
+    fn pose(&self, u: f64) -> Vec<Blob> {
         (0..self.to.len())
             .map(|i| {
                 let e = smoothstep((u - self.start[i]) / self.span);

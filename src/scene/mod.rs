@@ -238,12 +238,45 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let deforming = file::deforming::load(base, &file)
         .map_err(|(field, message)| invalid_at(&field, message))?;
     match &mut file.target {
-        Target::Model(p) => *p = resolve(p)?,
+        Some(Target::Model(p)) => *p = resolve(p)?,
         // A sequence's pattern names no one file.
-        Target::Fit { mesh, .. } if crate::mesh::sequence::is_pattern(mesh) => {
+        Some(Target::Fit { mesh, .. }) if crate::mesh::sequence::is_pattern(mesh) => {
             *mesh = base.join(&*mesh).to_string_lossy().into_owned()
         }
-        Target::Fit { mesh, .. } => *mesh = resolve(mesh)?,
+        Some(Target::Fit { mesh, .. }) => *mesh = resolve(mesh)?,
+        None => {}
+    }
+    // A story's targets: one that cannot be read is located at its path in the text.
+    for (i, entry) in file.story.iter_mut().enumerate() {
+        let from = entry.animation.as_mut().and_then(|a| match a {
+            crate::animate::Animation::Morph(m) => Some(&mut m.from),
+            _ => None,
+        });
+        for (field, target) in std::iter::once(("target", &mut entry.target))
+            .chain(from.map(|f| ("animation.from", f)))
+        {
+            let p = match target {
+                Target::Model(p) => p,
+                Target::Fit { mesh, .. } => mesh,
+            };
+            let resolved = resolve(p).map_err(|e| match e {
+                SceneError::MissingTarget { target, .. } => {
+                    let (line, column) = locate(text, "story", p);
+                    SceneError::File(FileError::Parse {
+                        path: path.to_path_buf(),
+                        line,
+                        column,
+                        message: format!(
+                            "story[{i}].{field}: {} does not exist (relative paths resolve \
+                             against the scene file's folder)",
+                            target.display()
+                        ),
+                    })
+                }
+                other => other,
+            })?;
+            *p = resolved;
+        }
     }
     // A tracked camera's lines are read now: every frame of the shot must have one.
     if let file::CameraSpec::Chan(c) = &mut file.camera {

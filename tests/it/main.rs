@@ -36,6 +36,7 @@ mod render;
 mod robustness;
 mod scene;
 mod sheets;
+mod story;
 mod surfaces;
 mod usd_camera;
 mod usd_holdouts;

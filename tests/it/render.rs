@@ -442,7 +442,7 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
         let Some(scene) = builtin_scenes::load(name) else {
             continue;
         };
-        let Target::Fit { mesh, .. } = &scene.file.target else {
+        let Some(Target::Fit { mesh, .. }) = &scene.file.target else {
             panic!("{name}: the check needs the mesh a scene fits");
         };
         let mut mesh = nephele::mesh::load(mesh).unwrap().mesh;

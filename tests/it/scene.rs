@@ -86,7 +86,7 @@ fn minimal_scene_takes_the_defaults() {
     assert!(matches!(s.file.animation, Animation::Diffusion(_)));
     assert!(matches!(s.file.camera, CameraSpec::Auto(_)));
     match &s.file.target {
-        Target::Model(p) => assert_eq!(Path::new(p), dir.join("model.ron")),
+        Some(Target::Model(p)) => assert_eq!(Path::new(p), dir.join("model.ron")),
         t => panic!("{t:?}"),
     }
 }

@@ -22,7 +22,7 @@ use crate::mesh::sequence::{MeshSequence, is_pattern};
 /// The mesh sequence of `file`'s target when it deforms (`None` for a still target). `base`
 /// is the scene file's folder; an error is `(field, message)` for the scene to locate.
 pub fn load(base: &Path, file: &SceneFile) -> Result<Option<Arc<MeshSequence>>, (String, String)> {
-    let Target::Fit { mesh, .. } = &file.target else {
+    let Some(Target::Fit { mesh, .. }) = &file.target else {
         return Ok(None);
     };
     let field = "target.mesh".to_string();

@@ -4,7 +4,8 @@
 //! A small RON scanner: it skips strings, raw strings, characters and comments, tracks nesting,
 //! and finds each part of a dotted field (`camera.fov_deg`) as the least nested `name:` inside
 //! the value of the part before (so an enum variant's wrapping, `Auto((fov_deg: 20))`, is
-//! looked through). A field the file does not write (a default) has no place: `None`.
+//! looked through). A part `name[i]` is the `i`-th element of the list `name` (`story[1].end`).
+//! A field the file does not write (a default) has no place: `None`.
 
 /// The 1-based line and column (in characters) of `field` (dotted, e.g. `cloud.noise.octaves`)
 /// in RON `text`, if the text writes it.
@@ -13,20 +14,44 @@ pub fn locate(text: &str, field: &str) -> Option<(usize, usize)> {
     let (mut from, mut to) = (0, tokens.len());
     let mut found = None;
     for part in field.split('.') {
-        let at = key_in(&tokens, from, to, part)?;
+        let (name, index) = match part.split_once('[') {
+            Some((name, rest)) => (name, rest.strip_suffix(']')?.parse::<usize>().ok()),
+            None => (part, None),
+        };
+        let at = key_in(&tokens, from, to, name)?;
         found = Some(tokens[at].offset);
         // The value runs from after `:` to the `,` or closing bracket at the key's depth.
         let depth = tokens[at].depth;
         from = at + 2;
-        to = (from..to)
-            .find(|&i| {
-                let t = &tokens[i];
-                (t.depth == depth && t.kind == Kind::Punct(','))
-                    || (t.depth < depth && matches!(t.kind, Kind::Punct(')' | ']' | '}')))
-            })
-            .unwrap_or(to);
+        to = value_end(&tokens, from, to, depth);
+        if let Some(i) = index {
+            // The list's elements are separated by commas one level deeper than its key.
+            let open = (from..to).find(|&k| tokens[k].kind == Kind::Punct('['))?;
+            let mut start = open + 1;
+            for _ in 0..i {
+                start = value_end(&tokens, start, to, depth + 1) + 1;
+            }
+            if start >= to || tokens[start].depth <= depth {
+                return None;
+            }
+            found = Some(tokens[start].offset);
+            from = start;
+            to = value_end(&tokens, start, to, depth + 1);
+        }
     }
     found.map(|offset| line_column(text, offset))
+}
+
+/// The index of the `,` or closing bracket that ends the value starting at `from` whose key (or
+/// list) is at `depth` (`to` when none before it).
+fn value_end(tokens: &[Token], from: usize, to: usize, depth: usize) -> usize {
+    (from..to)
+        .find(|&i| {
+            let t = &tokens[i];
+            (t.depth == depth && t.kind == Kind::Punct(','))
+                || (t.depth < depth && matches!(t.kind, Kind::Punct(')' | ']' | '}')))
+        })
+        .unwrap_or(to)
 }
 
 /// The least nested `part:` among `tokens[from..to]`.
@@ -215,5 +240,16 @@ Scene(
         assert_eq!(locate(SCENE, "c"), None);
         // A key of another part is not taken for this one's.
         assert_eq!(locate(SCENE, "sun.octaves"), None);
+    }
+
+    #[test]
+    fn list_elements_are_found_by_index() {
+        let text = "Scene(\n  story: [\n    (target: Model(\"a\"), end: 1.0),\n    (target: Model(\"b\"), start: 0.5, end: 2.0),\n  ],\n)";
+        assert_eq!(locate(text, "story[0]"), Some((3, 5)));
+        assert_eq!(locate(text, "story[1]"), Some((4, 5)));
+        assert_eq!(locate(text, "story[1].start"), Some((4, 26)));
+        assert_eq!(locate(text, "story[0].end"), Some((3, 26)));
+        assert_eq!(locate(text, "story[0].start"), None);
+        assert_eq!(locate(text, "story[2]"), None);
     }
 }

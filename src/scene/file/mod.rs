@@ -11,6 +11,7 @@ pub mod chan;
 pub mod deforming;
 pub mod holdouts;
 pub mod locate;
+pub mod story;
 pub mod transform;
 pub mod usd_camera;
 pub mod usd_mesh;
@@ -24,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 pub use self::camera::{AutoCamera, CameraSpec, FixedCamera};
 pub use self::holdouts::{GroundSpec, HoldoutSpec};
+pub use self::story::StoryEntry;
 use self::transform::TargetTransform;
 use super::SceneError;
 use crate::animate::{Animation, Timing, Wind};
@@ -42,8 +44,12 @@ pub const MAX_PADDING: u32 = 10;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Scene")]
 pub struct SceneFile {
-    /// What the cloud becomes (the only required field).
-    pub target: Target,
+    /// What the cloud becomes (required, unless a `story` names the targets).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<Target>,
+    /// Targets in turn, each formed from the one before (default none; [`story`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub story: Vec<StoryEntry>,
     /// Orientation, size and place of the target in the shot (default: as fitted).
     #[serde(default)]
     pub transform: TargetTransform,
@@ -436,12 +442,12 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
             ));
         }
     }
-    if let Target::Fit {
+    if let Some(Target::Fit {
         blobs,
         candidates,
         samples,
         ..
-    } = &s.target
+    }) = &s.target
     {
         let fit = crate::pipeline::FitConfig {
             blobs: *blobs,
@@ -451,6 +457,7 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         };
         fit.validate().map_err(|e| bad("target", e.to_string()))?;
     }
+    story::validate(s).map_err(|(field, message)| bad(&field, message))?;
     s.animation.validate().map_err(|e| match e {
         crate::animate::AnimateError::Invalid { field, message } => bad(&field, message),
         other => bad("animation", other.to_string()),

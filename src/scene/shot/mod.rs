@@ -11,6 +11,7 @@ pub mod frames;
 pub mod request;
 pub mod run;
 pub mod stats;
+pub mod story;
 pub mod target;
 pub mod usd;
 
@@ -258,8 +259,12 @@ impl Shot {
         if let Some(p) = self.prepared.get() {
             return Ok(p);
         }
-        let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
-        let prepared = plan(&self.scene, model, origin)?;
+        let prepared = if self.scene.file.story.is_empty() {
+            let (model, origin) = load_target(&self.scene, &self.cache_dir)?;
+            plan(&self.scene, model, origin)?
+        } else {
+            story::plan(&self.scene, &self.cache_dir)?
+        };
         // The diffusion's blend path, if another process made it for this very plan.
         super::resume::blend_cache::load(&self.cache_dir, &prepared.plan);
         Ok(self.prepared.get_or_init(|| prepared))
@@ -407,7 +412,9 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
     scene.file.transform.apply(&mut model.blobs);
     // Before planning: a target the renderer cannot draw is refused, not rendered empty.
     let bounds = blob_bounds(&model.blobs);
-    self::target::check_target_box(scene, &bounds, &self::target::spec_name(&scene.file.target))?;
+    if let Some(target) = &scene.file.target {
+        self::target::check_target_box(scene, &bounds, &self::target::spec_name(target))?;
+    }
     let shot = &scene.file.shot;
     let timeline = Timeline {
         frames: shot.frame_count() as usize,
@@ -452,33 +459,7 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
         bounds = bounds.union(deformation.bounds(&plan.frame(timeline.frames - 1)));
         direction.deform = Some(std::sync::Arc::new(deformation));
     }
-    // A target that moves is framed over its whole path (its box carried to every frame).
-    let framing = match &direction.motion {
-        None => bounds,
-        Some(_) => (0..timeline.frames).fold(Aabb::EMPTY, |framing, k| {
-            let t = timeline.time(k);
-            (0..8).fold(framing, |framing, i| {
-                let corner = glam::DVec3::new(
-                    if i & 1 == 0 {
-                        bounds.min.x
-                    } else {
-                        bounds.max.x
-                    },
-                    if i & 2 == 0 {
-                        bounds.min.y
-                    } else {
-                        bounds.max.y
-                    },
-                    if i & 4 == 0 {
-                        bounds.min.z
-                    } else {
-                        bounds.max.z
-                    },
-                );
-                framing.grown(direction.carry(t, corner))
-            })
-        }),
-    };
+    let framing = framing(&direction, bounds, &timeline);
     Ok(Prepared {
         model,
         bounds,
@@ -511,4 +492,19 @@ fn deformation(
     let times: Vec<f64> = seq.numbers.iter().map(|n| (n - first) / shot.fps).collect();
     let formed = plan.frame(plan.timeline().frames - 1);
     animate::Deformation::new(&formed, &frames, &times)
+}
+
+/// The box the camera frames: the target's `bounds`, carried over the whole shot for a target
+/// that moves (its corners at every frame).
+pub(crate) fn framing(direction: &animate::Direction, bounds: Aabb, timeline: &Timeline) -> Aabb {
+    if direction.motion.is_none() {
+        return bounds;
+    }
+    (0..timeline.frames).fold(Aabb::EMPTY, |framing, k| {
+        let t = timeline.time(k);
+        bounds
+            .corners()
+            .into_iter()
+            .fold(framing, |framing, c| framing.grown(direction.carry(t, c)))
+    })
 }

@@ -40,11 +40,37 @@ pub const TARGET_REACH: f64 = 1e4;
 /// Load (or fit and cache in `cache_dir`) the scene's target model. A mesh whose box, moved
 /// by the scene's `transform`, is outside [`TARGET_DIAGONAL`] or [`TARGET_REACH`] is refused
 /// before it is fitted (see [`check_target_box`]).
+/// A scene with a `story` has no `target`: its target is the story's last one (not checked
+/// here: [`load_story_target`]).
 pub fn load_target(
     scene: &Scene,
     cache_dir: &Path,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
-    load(scene, &scene.file.target, cache_dir, true)
+    match &scene.file.target {
+        Some(target) => load(scene, target, cache_dir, true, "target"),
+        None => load_story_target(scene, scene.file.story.len().saturating_sub(1), cache_dir),
+    }
+}
+
+/// Load (or fit and cache in `cache_dir`) the target of the scene's story entry `i`, as it
+/// was modelled (its `transform` not applied).
+pub fn load_story_target(
+    scene: &Scene,
+    i: usize,
+    cache_dir: &Path,
+) -> Result<(BlobModel, TargetOrigin), SceneError> {
+    let entry = scene.file.story.get(i).ok_or_else(|| SceneError::Invalid {
+        path: scene.path.clone(),
+        field: "target".into(),
+        message: "a scene needs a `target` (or a `story` of targets in turn)".into(),
+    })?;
+    load(
+        scene,
+        &entry.target,
+        cache_dir,
+        false,
+        &format!("story[{i}].target"),
+    )
 }
 
 /// Load (or fit and cache in `cache_dir`) the model `spec` of `scene` (its target, or a
@@ -54,7 +80,7 @@ pub fn load_spec(
     spec: &Target,
     cache_dir: &Path,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
-    load(scene, spec, cache_dir, false)
+    load(scene, spec, cache_dir, false, "animation.from")
 }
 
 /// What `spec` names, for an error: `the mesh "…"` or `the model "…"`.
@@ -202,11 +228,13 @@ fn num(v: f64) -> String {
 
 /// [`load_spec`]; with `check`, a mesh's transformed box is checked before the fit
 /// ([`check_target_box`]), so nothing is fitted or cached for a target that is refused.
+/// `field` names the spec in errors.
 fn load(
     scene: &Scene,
     spec: &Target,
     cache_dir: &Path,
     check: bool,
+    field: &str,
 ) -> Result<(BlobModel, TargetOrigin), SceneError> {
     let model_err = |source| SceneError::Model {
         scene: scene.path.clone(),
@@ -218,7 +246,7 @@ fn load(
             let m = crate::animate::cumulus::builtin_model(name).ok_or_else(|| {
                 SceneError::Invalid {
                     path: scene.path.clone(),
-                    field: "target".into(),
+                    field: field.into(),
                     message: format!(
                         "no builtin model {p:?}; the builtin model is builtin:cumulus"
                     ),
@@ -277,7 +305,6 @@ fn load(
                 source,
             })?;
             let b = loaded.mesh.bounds();
-            let field = if check { "target" } else { "animation.from" };
             check_fit_mesh(scene, field, &spec_name(spec), &b)?;
             if check {
                 let moved = (0..8).fold(Aabb::EMPTY, |moved, i| {
