@@ -124,7 +124,7 @@ fn render(args: Args) -> anyhow::Result<()> {
     for o in args.scene_args.overrides() {
         say.detail(format!("{}: {} = {}", o.given, o.key, o.value));
     }
-    say.detail(format!("{} worker threads", rayon::current_num_threads()));
+    say.detail(format!("worker threads: {}", rayon::current_num_threads()));
     if let Some(task) = args.task {
         let (index, frames) = task_frames(task, shot.frames())?;
         say.info(format!(

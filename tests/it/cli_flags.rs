@@ -161,7 +161,7 @@ fn one_thread_renders_the_same_bits() {
         .output()
         .unwrap();
     let t = text(&v);
-    assert!(t.contains("1 worker threads"), "{t}");
+    assert!(t.contains("worker threads: 1\n"), "{t}");
     // Verbose: the skipped frames too.
     assert!(t.contains("frame    2/2: up to date, skipped"), "{t}");
 }
