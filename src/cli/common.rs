@@ -16,7 +16,7 @@ use nephele::scene::{self, Override, Scene};
 pub struct SceneArgs {
     /// Override a value of the scene in its own dotted names, as if the file said it (RON
     /// value; repeatable, later ones win): `--set cloud.density=30 --set
-    /// camera.fov_deg=20 --set 'sky=Gradient(())'`. Part of the frames' provenance like
+    /// camera.fov_deg=20 --set 'output.formats=[Exr]'`. Part of the frames' provenance like
     /// the file's values.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = Override::set)]
     pub set: Vec<Override>,
@@ -43,7 +43,7 @@ impl SceneArgs {
 /// How a command reports progress for a machine.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ProgressFormat {
-    /// One JSON object a line on stdout (README, "Progress for a farm manager").
+    /// One JSON object a line on stdout (the README's "A renderer's conventions").
     Json,
 }
 
