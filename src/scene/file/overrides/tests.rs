@@ -154,3 +154,13 @@ fn the_files_own_errors_keep_their_place() {
     assert!(plain.starts_with("s.ron:3:"), "{plain}");
     assert_eq!(place(&["seed=3", "cloud.density=30"]), plain);
 }
+
+#[test]
+fn a_file_with_attributes_takes_overrides() {
+    let text = format!("#![enable(implicit_some)]\n{SCENE}");
+    let o = apply(Path::new("s.ron"), &text, &sets(&["seed=7", "shot.fps=30"])).unwrap();
+    let edited = text
+        .replacen("    shot:", "    seed: 7, shot:", 1)
+        .replacen("seconds: 0.25", "seconds: 0.25, fps: 30", 1);
+    assert_eq!(o.file, parsed(&edited));
+}

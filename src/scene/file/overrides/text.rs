@@ -171,6 +171,13 @@ fn body(toks: &[Token]) -> Option<Body> {
         toks[i].kind == Kind::Ident && toks.get(i + 1).is_some_and(|t| t.kind == Kind::Punct(':'))
     };
     let mut i = 0;
+    // A file's attributes first (`#![enable(implicit_some)]`): to their closing `]`.
+    while toks.get(i).is_some_and(|t| t.text.starts_with('#')) {
+        let depth = toks[i].depth;
+        i = (i + 1..toks.len())
+            .find(|&j| toks[j].depth == depth && toks[j].kind == Kind::Punct(']'))
+            .map_or(toks.len(), |j| j + 1);
+    }
     while i < toks.len()
         && ((toks[i].kind == Kind::Ident && !is_key(i)) || toks[i].kind == Kind::Punct('('))
     {
