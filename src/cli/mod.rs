@@ -2,6 +2,7 @@
 //! [`main`] is the `nephele` program (the binary's and the Python wheel's).
 
 pub mod codec;
+pub mod common;
 pub mod eval;
 pub mod farm;
 pub mod fit;

@@ -15,6 +15,8 @@ use nephele::pipeline::{self, FitConfig};
 use nephele::render::{self, Camera, CloudMaterial, Quality, RenderSettings, Sky, Sun, output};
 use nephele::scene::transform::{TargetTransform, Up};
 
+use super::common::{Report, RunArgs};
+
 /// Arguments of `nephele preview`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -26,9 +28,9 @@ pub struct Args {
     /// Number of turntable frames (one full turn).
     #[arg(long, default_value_t = 36)]
     pub frames: u32,
-    /// Width and height of the frames in pixels.
-    #[arg(long, default_value_t = 256)]
-    pub size: u32,
+    /// Size of the frames in pixels: WIDTHxHEIGHT, or one number for a square.
+    #[arg(long, value_name = "WxH", default_value = "256", value_parser = parse_frame_size)]
+    pub size: (u32, u32),
     /// Blobs of the quick fit (meshes only).
     #[arg(long, default_value_t = 150)]
     pub blobs: usize,
@@ -42,6 +44,17 @@ pub struct Args {
     /// x, y, z, -x, -y or -z (a scanned Z-up mesh such as horse.ply needs `--up z`).
     #[arg(long, default_value = "y", value_parser = parse_up)]
     pub up: Up,
+    /// `--threads`, `--progress`, `-q`, `-v`.
+    #[command(flatten)]
+    pub run_args: RunArgs,
+}
+
+/// `WxH` (the scene's `--size` rule) or `N` (a square).
+fn parse_frame_size(s: &str) -> Result<(u32, u32), String> {
+    match s.trim().parse::<u32>() {
+        Ok(n) => Ok((n, n)),
+        Err(_) => nephele::scene::file::overrides::parse_size(s),
+    }
 }
 
 fn parse_up(s: &str) -> Result<Up, String> {
@@ -54,16 +67,23 @@ const FOV_DEG: f32 = 30.0;
 /// Camera elevation above the model's centre, degrees.
 const ELEVATION_DEG: f32 = 15.0;
 
-/// Run `nephele preview`.
+/// Run `nephele preview` on the threads `--threads` asks for.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let run_args = args.run_args.clone();
+    run_args.install(|| preview(args))?
+}
+
+fn preview(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames >= 1, "--frames must be at least 1");
+    let (width, height) = args.size;
     anyhow::ensure!(
-        (8..=4096).contains(&args.size),
-        "--size must be between 8 and 4096 pixels, got {}",
-        args.size
+        (8..=4096).contains(&width) && (8..=4096).contains(&height),
+        "--size must be between 8 and 4096 pixels a side, got {width}x{height}"
     );
     anyhow::ensure!(args.fps >= 1, "--fps must be at least 1");
-    let mut model = load_or_fit(&args)?;
+    let mut report = args.run_args.report(u64::from(args.frames));
+    report.stage("start");
+    let mut model = load_or_fit(&args, &report)?;
     TargetTransform {
         up: args.up,
         ..TargetTransform::default()
@@ -90,7 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bounds.diagonal()
     };
 
-    let bar = nephele::progress::bar("preview", args.frames as u64);
+    let bar = report.bar("preview");
     let mut images = Vec::with_capacity(args.frames as usize);
     let mut times = Vec::with_capacity(args.frames as usize);
     // One cloud seen from around it: the frames after the first reuse its light grid.
@@ -105,32 +125,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", path.display()))?;
         images.push(output::tonemapped(frame, &settings));
         bar.inc(1);
+        report.step(k + 1, times[times.len() - 1], false);
+        report.detail(format!(
+            "frame {:>4}/{}: {:.3} s",
+            k + 1,
+            args.frames,
+            times[times.len() - 1]
+        ));
     }
     bar.finish_and_clear();
     let gif = dir.join("turntable.gif");
     write_gif(&gif, images, args.fps).with_context(|| format!("writing {}", gif.display()))?;
     let mean = times.iter().sum::<f64>() / times.len() as f64;
     times.sort_by(f64::total_cmp);
-    eprintln!(
-        "{}: {} frames of {}x{} ({} live blobs), {:.3} s/frame mean, {:.3} s median",
+    report.stage("done");
+    report.info(format!(
+        "{}: {} frames of {width}x{height} ({} live blobs), {:.3} s/frame mean, {:.3} s median",
         dir.display(),
         args.frames,
-        args.size,
-        args.size,
         model.live_count(),
         mean,
         times[times.len() / 2]
-    );
+    ));
     Ok(())
 }
 
 /// The model named by `args.input`, or a quick fit of the mesh it names.
-fn load_or_fit(args: &Args) -> anyhow::Result<BlobModel> {
+fn load_or_fit(args: &Args, report: &Report) -> anyhow::Result<BlobModel> {
     let path = Path::new(&args.input);
     if !args.input.starts_with("builtin:") && is_model_file(path) {
         return Ok(nephele::blobby::load_model(path)?);
     }
-    let loaded = super::load_mesh(&args.input)?;
+    let loaded = nephele::mesh::load(&args.input)?;
+    for w in &loaded.warnings {
+        report.info(format!("warning: {w}"));
+    }
     let cfg = FitConfig {
         blobs: args.blobs,
         candidates: 800,
@@ -140,12 +169,12 @@ fn load_or_fit(args: &Args) -> anyhow::Result<BlobModel> {
     };
     let start = Instant::now();
     let out = pipeline::fit(&cfg, &loaded)?;
-    eprintln!(
+    report.info(format!(
         "fitted {} blobs to {} in {:.2} s",
         out.model.blobs.len(),
         args.input,
         start.elapsed().as_secs_f64()
-    );
+    ));
     Ok(out.model)
 }
 
@@ -194,8 +223,8 @@ fn turntable_settings(args: &Args, bounds: Aabb, length_scale: f32, k: u32) -> R
     let right = forward.cross(Vec3::Y).normalize();
     let up = right.cross(forward);
     RenderSettings {
-        width: args.size,
-        height: args.size,
+        width: args.size.0,
+        height: args.size.1,
         camera: Camera {
             position,
             look_at: center,

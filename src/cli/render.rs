@@ -6,6 +6,8 @@ use anyhow::Context;
 use nephele::scene::frames::{FrameSelection, selection_text};
 use nephele::scene::{self, RenderOptions, Shot};
 
+use super::common::{Level, RunArgs, SceneArgs};
+
 /// Arguments of `nephele render`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -63,6 +65,12 @@ pub struct Args {
     /// list of exr, png, vdb (OpenVDB density grid) and vol (Mitsuba density grid).
     #[arg(long, value_delimiter = ',', value_parser = nephele::render::output::parse_format)]
     pub formats: Vec<scene::Format>,
+    /// `--set`, `--size`.
+    #[command(flatten)]
+    pub scene_args: SceneArgs,
+    /// `--threads`, `--progress`, `-q`, `-v`.
+    #[command(flatten)]
+    pub run_args: RunArgs,
 }
 
 /// A `--task` value: chunk `index` of `count`; `index` is `None` for `auto`.
@@ -85,9 +93,14 @@ fn parse_task(s: &str) -> Result<TaskArg, String> {
     Ok(TaskArg { index, count })
 }
 
-/// Run `nephele render`.
+/// Run `nephele render` on the threads `--threads` asks for.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut scene = scene::load_scene(&args.scene)?;
+    let run_args = args.run_args.clone();
+    run_args.install(|| render(args))?
+}
+
+fn render(args: Args) -> anyhow::Result<()> {
+    let mut scene = args.scene_args.load(&args.scene)?;
     if !args.formats.is_empty() {
         scene.file.output.formats = args.formats.clone();
     }
@@ -107,47 +120,70 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let name = scene.name.clone();
     let mut shot = Shot::open(scene, &opts)?;
+    let say = args.run_args.report(0);
+    for o in args.scene_args.overrides() {
+        say.detail(format!("{}: {} = {}", o.given, o.key, o.value));
+    }
+    say.detail(format!("worker threads: {}", rayon::current_num_threads()));
     if let Some(task) = args.task {
         let (index, frames) = task_frames(task, shot.frames())?;
-        eprintln!(
+        say.info(format!(
             "task {index}/{}: frames {} of {}",
             task.count,
             selection_text(&frames),
             selection_text(shot.frames())
-        );
+        ));
         shot.set_frames(frames);
     }
-    let count = shot.frames().len() as u64;
-    let bar = nephele::progress::bar(&name, count);
-    let report = shot
+    let mut report = args.run_args.report(shot.frames().len() as u64);
+    report.stage("start");
+    let bar = report.bar(&name);
+    let done = shot
         .run(&mut |f| {
             bar.inc(1);
-            if !f.skipped {
-                let line = format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds);
-                // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
-                if bar.is_hidden() {
-                    eprintln!("{line}");
-                } else {
-                    bar.println(line);
+            report.step(f.frame, f.seconds, f.skipped);
+            let line = if f.skipped {
+                if report.level < Level::Verbose {
+                    return;
                 }
+                format!("frame {:>4}/{}: up to date, skipped", f.frame, f.of)
+            } else if report.level >= Level::Normal {
+                format!("frame {:>4}/{}: {:.2} s", f.frame, f.of, f.seconds)
+            } else {
+                return;
+            };
+            // A hidden bar (not a terminal: a farm task's log) drops println; keep the line.
+            if bar.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                bar.println(line);
             }
         })
         .with_context(|| format!("rendering {}", args.scene.display()))?;
     bar.finish_and_clear();
+    report.stage("done");
+    summary(&report, &done, args.timings);
+    Ok(())
+}
+
+/// What the run did, on stderr (the timings with `--timings` or `-v`).
+fn summary(say: &super::common::Report, report: &scene::ShotReport, timings: bool) {
     if let Some(origin) = &report.target {
         use nephele::scene::target::TargetOrigin;
         match origin {
-            TargetOrigin::Fitted(p) => eprintln!("fitted the target, cached in {}", p.display()),
-            TargetOrigin::Cached(p) => eprintln!("target from cache {}", p.display()),
+            TargetOrigin::Fitted(p) => {
+                say.info(format!("fitted the target, cached in {}", p.display()))
+            }
+            TargetOrigin::Cached(p) => say.info(format!("target from cache {}", p.display())),
             TargetOrigin::ModelFile(_) => {}
         }
     }
-    eprintln!(
+    say.info(format!(
         "{}: {} frames rendered, {} already done (use --force to redo)",
         report.output_dir.display(),
         report.rendered,
         report.skipped
-    );
+    ));
     if !report.out_of_date.is_empty() {
         let why: Vec<String> = report
             .out_of_date
@@ -155,14 +191,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|(reason, n)| format!("{n} {reason}"))
             .collect();
         let n: u32 = report.out_of_date.iter().map(|(_, n)| n).sum();
-        eprintln!(
+        say.info(format!(
             "{n} of the rendered frames were out of date: {}",
             why.join("; ")
-        );
+        ));
     }
     let others = &report.others;
     if others.current + others.not_current > 0 {
-        eprintln!(
+        say.info(format!(
             "kept {} files of formats this run does not write ({}){}; --clean removes them",
             others.current + others.not_current,
             others.kinds.join(", "),
@@ -174,20 +210,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 String::new()
             }
-        );
+        ));
     }
     if others.removed > 0 {
-        eprintln!(
+        say.info(format!(
             "removed {} files of formats this run does not write ({})",
             others.removed,
             others.kinds.join(", ")
-        );
+        ));
     }
     if let Some(p) = &report.stats {
-        eprintln!("statistics in {}", p.display());
+        say.info(format!("statistics in {}", p.display()));
     }
-    if args.timings {
-        eprint!("{}", report.timings.report());
+    if timings || say.level >= Level::Verbose {
+        let mut t = report.timings.report();
         if report.rendered > 0 {
             let per = report
                 .timings
@@ -197,14 +233,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|s| s.1)
                 .sum::<f64>()
                 / report.rendered as f64;
-            eprintln!("  {:<14} {per:>8.3} s", "per frame");
+            t.push_str(&format!("  {:<14} {per:>8.3} s\n", "per frame"));
         }
         // The work counters, in a `--features counters` build (speed work reads them).
         for (name, n) in nephele::render::work_counts() {
-            eprintln!("  {name:<32} {:>10.3} M", n as f64 / 1e6);
+            t.push_str(&format!("  {name:<32} {:>10.3} M\n", n as f64 / 1e6));
+        }
+        // Asked for by name, the timings print even when quiet.
+        if timings && say.level == Level::Quiet {
+            eprint!("{t}");
+        } else {
+            say.info(t.trim_end());
         }
     }
-    Ok(())
 }
 
 /// The index of `task` (read from the environment for `auto`) and the frames of its chunk of

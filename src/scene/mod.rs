@@ -24,6 +24,7 @@ pub use shot::{chunk, frames, run, stats, target, usd};
 use crate::file_error::FileError;
 use std::path::{Path, PathBuf};
 
+pub use file::overrides::Override;
 pub use file::{
     AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, ShotSpec, Target,
 };
@@ -61,6 +62,17 @@ pub enum SceneError {
         /// Dotted field name (`shot.fps`).
         field: String,
         /// What is wrong, with the value found.
+        message: String,
+    },
+    /// A value set from outside the file (`--set KEY=VALUE`, `--size WxH`) that cannot be
+    /// written into the scene, or makes it invalid; `given` is the override as written.
+    #[error("{given}: {field}: {message}")]
+    Override {
+        /// The override as the user gave it (`--set shot.width=abc`).
+        given: String,
+        /// Dotted field name.
+        field: String,
+        /// What is wrong.
         message: String,
     },
     /// The target's model or mesh file does not exist.
@@ -196,6 +208,12 @@ impl SceneError {
 
 /// Read, parse and validate a scene file; resolve its paths and check that the target exists.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    load_scene_with(path, &[])
+}
+
+/// [`load_scene`] with `overrides` (`--set`, `--size`) applied to the file's values
+/// ([`file::overrides`]): the scene is the one the file would be with those values written in.
+pub fn load_scene_with(path: &Path, overrides: &[Override]) -> Result<Scene, SceneError> {
     let text =
         crate::input::read_to_string(path, crate::input::Limit::Scene).map_err(|source| {
             SceneError::File(FileError::Io {
@@ -203,12 +221,28 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
                 source,
             })
         })?;
-    scene_from_str(path, &text)
+    scene_with_overrides(path, &text, overrides)
 }
 
 /// [`load_scene`] on text already read (`path` locates relative paths and labels errors).
 pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
-    let mut file = file::parse(path, text)?;
+    scene_with_overrides(path, text, &[])
+}
+
+/// [`load_scene_with`] on text already read. An error in an overridden value names the
+/// override; the file's own errors keep their place in `text`.
+pub fn scene_with_overrides(
+    path: &Path,
+    text: &str,
+    overrides: &[Override],
+) -> Result<Scene, SceneError> {
+    let edited = file::overrides::apply(path, text, overrides)?;
+    scene_from_parsed(path, &edited.text, edited.file.clone())
+        .map_err(|e| edited.attribute(text, e))
+}
+
+/// A parsed scene `file` (of `text`) validated, with its paths resolved and files read.
+fn scene_from_parsed(path: &Path, text: &str, mut file: SceneFile) -> Result<Scene, SceneError> {
     file::validate(path, &file).map_err(|e| e.located(text))?;
     let base = path.parent().unwrap_or(Path::new(""));
     // A file the scene names that cannot be read: an error at that field, located in the text.

@@ -16,6 +16,7 @@ mod temp_support;
 mod animate;
 mod bench;
 mod builtin;
+mod cli_flags;
 mod codec;
 mod decompose;
 mod deform;

@@ -316,10 +316,16 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
         });
     }
     let mut bytes = Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| std::io::Error::other(format!("EXR encoding failed: {e}")))?;
+    // exr's parallel writer makes a pool of every core of its own: a run held to fewer threads
+    // (`--threads`) compresses on this one instead (the same bytes).
+    let held = std::thread::available_parallelism()
+        .is_ok_and(|cores| rayon::current_num_threads() < cores.get());
+    let written = if held {
+        image.write().non_parallel().to_buffered(&mut bytes)
+    } else {
+        image.write().to_buffered(&mut bytes)
+    };
+    written.map_err(|e| std::io::Error::other(format!("EXR encoding failed: {e}")))?;
     let mut bytes = bytes.into_inner();
     sort_header_attributes(&mut bytes)?;
     Ok(bytes)

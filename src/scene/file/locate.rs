@@ -55,7 +55,7 @@ fn value_end(tokens: &[Token], from: usize, to: usize, depth: usize) -> usize {
 }
 
 /// The least nested `part:` among `tokens[from..to]`.
-fn key_in(tokens: &[Token], from: usize, to: usize, part: &str) -> Option<usize> {
+pub(super) fn key_in(tokens: &[Token], from: usize, to: usize, part: &str) -> Option<usize> {
     (from..to.saturating_sub(1))
         .filter(|&i| {
             tokens[i].kind == Kind::Ident
@@ -65,22 +65,38 @@ fn key_in(tokens: &[Token], from: usize, to: usize, part: &str) -> Option<usize>
         .min_by_key(|&i| tokens[i].depth)
 }
 
+/// What a token is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
+pub(super) enum Kind {
+    /// A name (field, variant, `true`, ...).
     Ident,
+    /// A bracket, `:` or `,`.
     Punct(char),
+    /// Anything else: a number, a string, a character.
     Other,
 }
 
 /// A token with its byte offset and its nesting depth (brackets open before it).
-struct Token<'a> {
-    kind: Kind,
-    text: &'a str,
-    offset: usize,
-    depth: usize,
+pub(super) struct Token<'a> {
+    /// What it is.
+    pub(super) kind: Kind,
+    /// Its text.
+    pub(super) text: &'a str,
+    /// Byte offset of its first character.
+    pub(super) offset: usize,
+    /// Brackets open before it.
+    pub(super) depth: usize,
 }
 
-fn tokens(text: &str) -> Vec<Token<'_>> {
+impl Token<'_> {
+    /// Byte offset just after it.
+    pub(super) fn end(&self) -> usize {
+        self.offset + self.text.len()
+    }
+}
+
+/// The tokens of RON `text`; comments are skipped, a string (or character) is one token.
+pub(super) fn tokens(text: &str) -> Vec<Token<'_>> {
     let bytes = text.as_bytes();
     let mut out = Vec::new();
     let (mut i, mut depth) = (0, 0usize);
@@ -100,9 +116,16 @@ fn tokens(text: &str) -> Vec<Token<'_>> {
                 }
                 i += 2;
             }
-            b'"' => i = skip_quoted(bytes, i, b'"'),
-            b'\'' => i = skip_quoted(bytes, i, b'\''),
-            b'r' if matches!(bytes.get(i + 1), Some(b'"' | b'#')) => i = skip_raw(bytes, i),
+            b'"' | b'\'' => {
+                let end = skip_quoted(bytes, i, c).min(bytes.len());
+                out.push(other(text, i, end, depth));
+                i = end;
+            }
+            b'r' if matches!(bytes.get(i + 1), Some(b'"' | b'#')) => {
+                let end = skip_raw(bytes, i).min(bytes.len());
+                out.push(other(text, i, end, depth));
+                i = end;
+            }
             b'(' | b'[' | b'{' => {
                 out.push(punct(text, i, depth));
                 depth += 1;
@@ -164,6 +187,15 @@ fn tokens(text: &str) -> Vec<Token<'_>> {
     out
 }
 
+fn other(text: &str, start: usize, end: usize, depth: usize) -> Token<'_> {
+    Token {
+        kind: Kind::Other,
+        text: text.get(start..end).unwrap_or(""),
+        offset: start,
+        depth,
+    }
+}
+
 fn punct(text: &str, i: usize, depth: usize) -> Token<'_> {
     Token {
         kind: Kind::Punct(text.as_bytes()[i] as char),
@@ -204,7 +236,7 @@ fn skip_raw(bytes: &[u8], mut i: usize) -> usize {
 }
 
 /// The 1-based line and column (characters) of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
+pub(super) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset];
     let line = before.matches('\n').count() + 1;
     let column = before[before.rfind('\n').map_or(0, |n| n + 1)..]

@@ -11,6 +11,7 @@ pub mod chan;
 pub mod deforming;
 pub mod holdouts;
 pub mod locate;
+pub mod overrides;
 pub mod story;
 pub mod transform;
 pub mod usd_camera;
@@ -293,11 +294,14 @@ impl Default for OutputSpec {
 
 /// Parse scene text (`path` labels errors). Syntax and type errors carry line and column.
 pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
-    let options =
-        ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
-    options
+    parse_ron(text).map_err(|e| SceneError::File(FileError::ron(path, &e)))
+}
+
+/// [`parse`] with RON's own error.
+fn parse_ron(text: &str) -> Result<SceneFile, ron::error::SpannedError> {
+    ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
         .from_str::<SceneFile>(text)
-        .map_err(|e| SceneError::File(FileError::ron(path, &e)))
 }
 
 /// Lowest frame rate a shot may have.
