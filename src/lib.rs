@@ -32,6 +32,7 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod test_hook;
+pub mod view;
 
 /// The renderer's version ([`render::RENDER_VERSION`]).
 pub use render::RENDER_VERSION;

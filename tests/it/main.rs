@@ -12,6 +12,7 @@ mod mesh_checks;
 mod readers_support;
 mod shared_models;
 mod temp_support;
+mod view_support;
 
 mod animate;
 mod bench;
@@ -37,3 +38,4 @@ mod sheets;
 mod surfaces;
 mod usd_camera;
 mod usd_holdouts;
+mod view;

@@ -1,0 +1,36 @@
+//! `nephele view`: serve the live look-development page of a scene ([`nephele::view`]).
+
+use std::path::PathBuf;
+
+/// Arguments of `nephele view`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file (RON); see scenes/README.md. Fixed for the server's life.
+    pub scene: PathBuf,
+    /// Port on 127.0.0.1 (default: a free one; the URL is printed).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    /// Folder of the view's fit cache (default: $XDG_CACHE_HOME/nephele/view, else
+    /// ~/.cache/nephele/view). The view never writes into the shot's output folder unless its
+    /// "render the shot" button is pressed.
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
+}
+
+/// Run `nephele view` (until the process is stopped).
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let options = nephele::view::ViewOptions {
+        scene: args.scene,
+        port: args.port,
+        cache: args
+            .cache
+            .unwrap_or_else(nephele::view::ViewOptions::default_cache),
+    };
+    nephele::view::serve(options, &mut |url| {
+        use std::io::Write;
+        // The URL alone on stdout's first line (scripts and tests read it), then flushed.
+        println!("{url}");
+        let _ = std::io::stdout().flush();
+        eprintln!("nephele view: open {url} (Ctrl-C stops)");
+    })
+}
