@@ -84,6 +84,12 @@ pub struct FrameStat {
     pub render_s: f64,
 }
 
+/// Candidate seeds of a draft fit (at most).
+pub const DRAFT_CANDIDATES: usize = 400;
+
+/// Surface samples of a draft fit (at most).
+pub const DRAFT_SAMPLES: usize = 20_000;
+
 /// How many `Final` (or passes) frames a generation keeps.
 pub const KEPT_LARGE: usize = 8;
 
@@ -93,8 +99,10 @@ type FrameKey = (u32, Level, bool);
 /// The scene as loaded well once: its shots (opened on first need) and rendered frames.
 #[derive(Debug)]
 pub struct Generation {
-    /// Its number in this session (1, 2, … one a good save).
+    /// Its number in this session (1, 2, … one a good save, and one a draft).
     pub id: u64,
+    /// True when its target is a draft fit ([`Session::draft`]), shown while the fit runs.
+    pub draft: bool,
     /// The scene.
     pub scene: Scene,
     /// The files it reads (the scene file first): what the watcher watches.
@@ -139,6 +147,7 @@ impl Generation {
         let size = |level| self.shot(level, false).map(|s| s.size()).ok();
         json!({
             "id": self.id,
+            "draft": self.draft,
             "name": self.scene.name,
             "start": start,
             "last": last,
@@ -238,6 +247,8 @@ pub struct Session {
     pub nonce: u64,
     state: Mutex<State>,
     render: Mutex<()>,
+    /// The frame the page asked for last (a draft renders it before the fit runs).
+    last_frame: Mutex<Option<u32>>,
     /// The page's event stream.
     pub hub: Hub,
 }
@@ -265,6 +276,7 @@ impl Session {
             cache,
             nonce,
             render: Mutex::new(()),
+            last_frame: Mutex::new(None),
             hub: Hub::default(),
         })
     }
@@ -300,25 +312,58 @@ impl Session {
     }
 
     /// Load the scene again (a save): a new generation, or its error with the last good one
-    /// kept. Tells the page either way.
+    /// kept. Tells the page either way. A target to be fitted anew is first shown from a
+    /// draft fit ([`Session::draft`]), then from its fit.
     pub fn reload(&self) {
         {
             self.state.lock().unwrap().loading = true;
         }
         self.hub.send(&json!({"type": "loading"}));
         let started = Instant::now();
-        let loaded = self.load();
+        let scene = match scene::load_scene(&self.scene_path) {
+            Ok(scene) => scene,
+            Err(e) => return self.publish(Err(message(&e)), started),
+        };
+        seed_cache(&scene.output_dir, &self.cache);
+        let watched = referenced_files(&scene);
+        if let Some(draft) = self.draft(&scene)
+            && let Ok(generation) = self.open_generation(draft, watched.clone(), true)
+        {
+            self.publish(Ok(generation), started);
+            // The page's frame of the draft, before the fit takes the cores.
+            let current = self.state.lock().unwrap().current.clone();
+            let frame = *self.last_frame.lock().unwrap();
+            if let (Some(g), Some(f)) = (current, frame) {
+                let f = f.clamp(g.range().0, g.range().1);
+                let _ = self.frame(&g, f, Level::Preview, false);
+            }
+        }
+        let generation = self.open_generation(scene, watched, false);
+        self.publish(generation, started);
+    }
+
+    /// Make `loaded` the page's state (a generation, or an error keeping the last good one)
+    /// and tell the page.
+    fn publish(&self, loaded: Result<Generation, String>, started: Instant) {
         {
             let mut s = self.state.lock().unwrap();
-            s.loading = false;
+            let drafted = s.current.as_ref().is_some_and(|g| g.draft);
             match loaded {
                 Ok(generation) => {
+                    s.loading = generation.draft;
                     s.watched = generation.watched.clone();
-                    s.previous = s.current.take();
+                    // A/B compares with the picture before the save, never with a draft.
+                    if !drafted {
+                        s.previous = s.current.take();
+                    }
                     s.current = Some(Arc::new(generation));
                     s.error = None;
                 }
                 Err(e) => {
+                    s.loading = false;
+                    if drafted {
+                        s.current = s.previous.clone();
+                    }
                     // Keep watching what the last good scene read (a fix may be there).
                     let mut watched = vec![self.scene_path.clone()];
                     if let Some(g) = &s.current {
@@ -334,11 +379,49 @@ impl Session {
         self.hub.send(&event);
     }
 
-    /// Read the scene, open its preview shot and make its target and plan (a fit when the
-    /// target needs one): the new generation, or the error as one line.
-    fn load(&self) -> Result<Generation, String> {
-        let scene = scene::load_scene(&self.scene_path).map_err(|e| message(&e))?;
-        seed_cache(&scene.output_dir, &self.cache);
+    /// `scene` with a draft fit as its target when its target is a fit not yet cached: fewer
+    /// candidates and samples ([`DRAFT_CANDIDATES`], [`DRAFT_SAMPLES`]) and the faithful
+    /// optimisation only — a tenth of the fit's time — saved in the view's cache as
+    /// `draft-<the fit's cache name>`. `None` when there is nothing to draft (or the draft
+    /// fails: the fit then says why).
+    fn draft(&self, scene: &Scene) -> Option<Scene> {
+        use crate::scene::target::{fit_cache_file, fit_config};
+        let cfg = fit_config(&scene.file.target)?;
+        let scene::Target::Fit { mesh, .. } = &scene.file.target else {
+            return None;
+        };
+        let file = fit_cache_file(mesh, &cfg, &self.cache).ok()?;
+        if file.exists() {
+            return None;
+        }
+        let draft = self
+            .cache
+            .join(format!("draft-{}", file.file_name()?.to_string_lossy()));
+        if crate::blobby::load_model(&draft).is_err() {
+            let draft_cfg = crate::pipeline::FitConfig {
+                candidates: cfg.candidates.min(DRAFT_CANDIDATES),
+                samples: cfg.samples.min(DRAFT_SAMPLES),
+                optimisation: crate::pipeline::Optimisation::Faithful(Default::default()),
+                ..cfg
+            };
+            let loaded = crate::mesh::load(mesh).ok()?;
+            let _one = self.render.lock().unwrap();
+            let fitted = crate::pipeline::fit(&draft_cfg, &loaded).ok()?;
+            crate::blobby::save_model(&draft, &fitted.model).ok()?;
+        }
+        let mut drafted = scene.clone();
+        drafted.file.target = scene::Target::Model(draft.to_string_lossy().into_owned());
+        Some(drafted)
+    }
+
+    /// A generation of `scene` (reading `watched`): its preview shot opened and its target
+    /// and plan made (a fit when the target needs one), or the error as one line.
+    fn open_generation(
+        &self,
+        scene: Scene,
+        watched: Vec<PathBuf>,
+        draft: bool,
+    ) -> Result<Generation, String> {
         let id = {
             let mut s = self.state.lock().unwrap();
             s.next_id += 1;
@@ -346,7 +429,8 @@ impl Session {
         };
         let generation = Generation {
             id,
-            watched: referenced_files(&scene),
+            draft,
+            watched,
             scene,
             cache: self.cache.clone(),
             shots: Mutex::default(),
@@ -356,7 +440,7 @@ impl Session {
             basis: OnceLock::new(),
         };
         let shot = generation.shot(Level::Preview, false)?;
-        // One frame at a time: a fit or plan uses every core, as a render does.
+        // One at a time: a fit or plan uses every core, as a render does.
         let _one = self.render.lock().unwrap();
         shot.prepared().map_err(|e| message(&e))?;
         Ok(generation)
@@ -378,6 +462,7 @@ impl Session {
                 "frame {frame} is outside the shot ({start}..{last})"
             ));
         }
+        *self.last_frame.lock().unwrap() = Some(frame);
         let key = (frame, level, passes);
         if let Some(r) = generation.cached(key) {
             return Ok(r);

@@ -231,34 +231,9 @@ fn load(
             let m = crate::blobby::load_model(&path).map_err(model_err)?;
             Ok((m, TargetOrigin::ModelFile(path)))
         }
-        Target::Fit {
-            mesh,
-            blobs,
-            candidates,
-            samples,
-            seed,
-        } => {
-            let identity: Vec<u8> = if mesh.starts_with("builtin:") {
-                mesh.as_bytes().to_vec()
-            } else {
-                crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
-                    |source| {
-                        SceneError::File(FileError::Io {
-                            path: PathBuf::from(mesh),
-                            source,
-                        })
-                    },
-                )?
-            };
-            let cfg = FitConfig {
-                blobs: *blobs,
-                candidates: *candidates,
-                samples: *samples,
-                seed: *seed,
-                ..FitConfig::default()
-            };
-            let hash = fit_cache_key(&identity, &cfg);
-            let cache = cache_dir.join(format!("target-{hash:016x}.ron"));
+        Target::Fit { mesh, .. } => {
+            let cfg = fit_config(spec).unwrap_or_default();
+            let cache = fit_cache_file(mesh, &cfg, cache_dir)?;
             if cache.exists()
                 && let Ok(m) = crate::blobby::load_model(&cache)
             {
@@ -290,6 +265,49 @@ fn load(
             Ok((out.model, TargetOrigin::Fitted(cache)))
         }
     }
+}
+
+/// The fit settings `spec` asks for (`None` for a model): the counts and seed it writes, the
+/// rest [`FitConfig::default`].
+pub fn fit_config(spec: &Target) -> Option<FitConfig> {
+    match spec {
+        Target::Model(_) => None,
+        Target::Fit {
+            blobs,
+            candidates,
+            samples,
+            seed,
+            ..
+        } => Some(FitConfig {
+            blobs: *blobs,
+            candidates: *candidates,
+            samples: *samples,
+            seed: *seed,
+            ..FitConfig::default()
+        }),
+    }
+}
+
+/// The cache file in `cache_dir` of the fit of `mesh` (a path or `builtin:NAME`) with `cfg`:
+/// `target-<key>.ron`, [`fit_cache_key`] of the mesh file's bytes (or the builtin's name).
+/// Fails when the mesh file cannot be read.
+pub fn fit_cache_file(
+    mesh: &str,
+    cfg: &FitConfig,
+    cache_dir: &Path,
+) -> Result<PathBuf, SceneError> {
+    let identity: Vec<u8> = if mesh.starts_with("builtin:") {
+        mesh.as_bytes().to_vec()
+    } else {
+        crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(|source| {
+            SceneError::File(FileError::Io {
+                path: PathBuf::from(mesh),
+                source,
+            })
+        })?
+    };
+    let hash = fit_cache_key(&identity, cfg);
+    Ok(cache_dir.join(format!("target-{hash:016x}.ron")))
 }
 
 /// The fitted-target cache key of a mesh (`identity`: its file's bytes or `builtin:` name)

@@ -67,6 +67,23 @@ impl View {
         (status, body)
     }
 
+    /// Wait (at most a minute) until the scene has loaded: its first generation exists.
+    pub fn wait_loaded(&self) {
+        let start = Instant::now();
+        loop {
+            let (_, state) = self.get("/state.json");
+            let state: Value = serde_json::from_str(&state).unwrap_or(Value::Null);
+            if state["current"].is_object() {
+                return;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "not loaded: {state}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// `GET path` with the right `Host`.
     pub fn get(&self, path: &str) -> (u16, String) {
         self.raw(&format!(
