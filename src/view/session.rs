@@ -440,8 +440,7 @@ impl Session {
             basis: OnceLock::new(),
         };
         let shot = generation.shot(Level::Preview, false)?;
-        // One at a time: a fit or plan uses every core, as a render does.
-        let _one = self.render.lock().unwrap();
+        // Not under the render lock: while a fit runs, the draft's pictures still come.
         shot.prepared().map_err(|e| message(&e))?;
         Ok(generation)
     }
@@ -469,10 +468,17 @@ impl Session {
         }
         let shot = generation.shot(level, passes)?;
         let rendered = {
-            let _one = self.render.lock().unwrap();
-            if let Some(r) = generation.cached(key) {
-                return Ok(r);
-            }
+            // One render at a time; a frame another request renders meanwhile is taken from
+            // the cache as soon as it is there (a lock's waiter may not be woken next).
+            let _one = loop {
+                if let Some(r) = generation.cached(key) {
+                    return Ok(r);
+                }
+                match self.render.try_lock() {
+                    Ok(one) => break one,
+                    Err(_) => std::thread::sleep(std::time::Duration::from_millis(2)),
+                }
+            };
             let k = shot.index(frame);
             let started = Instant::now();
             let image = shot.render_frame(k).map_err(|e| message(&e))?;

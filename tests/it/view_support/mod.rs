@@ -139,7 +139,10 @@ fn pipe() -> (RawFd, RawFd) {
 impl Browser {
     /// Start `chromium` headless and open `url` in a 1000×900 window.
     pub fn open(chromium: &Path, url: &str) -> Browser {
-        let profile = temp_dir("view-chromium");
+        // One profile a browser: tests run side by side in one process.
+        static BROWSERS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = BROWSERS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let profile = temp_dir(&format!("view-chromium-{n}"));
         let (to_read, to_write) = pipe();
         let (from_read, from_write) = pipe();
         let mut command = Command::new(chromium);
