@@ -3,7 +3,7 @@
 //! when absent, a failure under `NEPHELE_REQUIRE_READERS=1`) the page loads, shows the frame
 //! `nephele render --preview` writes (pixels compared), the timeline changes the frame, a save
 //! changes the picture, and a bad edit shows its located error while the picture stays.
-//! Nothing is written into the shot's output folder.
+//! Nothing is written into the shot's output folder until "render the shot" asks.
 
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
@@ -119,11 +119,33 @@ fn refuses_foreign_hosts_other_sites_and_paths() {
     assert_eq!(status, 403);
     let (status, _) = view.get("/render-shot");
     assert_eq!(status, 405);
-    drop(view);
     assert!(
         !dir.join("out").exists(),
         "the view wrote into the output folder"
     );
+
+    // Asked by the page ("render the shot"): the shot's frames, as `nephele render` writes them.
+    let (status, body) = view.raw(&format!(
+        "POST /render-shot HTTP/1.1\r\nHost: localhost:{port}\r\nOrigin: http://localhost:{port}\r\nContent-Length: 0\r\n"
+    ));
+    assert_eq!(status, 200, "{body}");
+    let start = Instant::now();
+    let done = loop {
+        let (_, state) = view.get("/state.json");
+        let state: serde_json::Value = serde_json::from_str(&state).unwrap();
+        if state["shot_render"]["running"] == false {
+            break state["shot_render"].clone();
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "{state}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert_eq!(done["rendered"], 4, "{done}");
+    for f in 1..=4 {
+        assert!(
+            dir.join(format!("out/shot_{f:04}.png")).is_file(),
+            "frame {f}"
+        );
+    }
 }
 
 /// The latest picture the page shows (from its log): generation, frame, level, the wall time
