@@ -407,3 +407,54 @@ fn latency() {
     eprintln!("medians: look {look:.0} ms, scrub {scrub:.1} ms, refit {refit:.0} ms");
     assert!(look <= 500.0 && scrub <= 50.0 && refit <= 2000.0);
 }
+
+/// The server's state, as the page reads it.
+fn state(view: &View) -> serde_json::Value {
+    serde_json::from_str(&view.get("/state.json").1).unwrap()
+}
+
+/// Wait (at most a minute) until `done` holds of the server's state; the state.
+#[track_caller]
+fn state_when(view: &View, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
+    let start = Instant::now();
+    loop {
+        let s = state(view);
+        if done(&s) {
+            return s;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "{s}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn saving_a_file_the_scene_reads_renders_again() {
+    use nephele::blobby::save_model;
+    let dir = temp_dir("view-model");
+    let model = dir.join("model.ron");
+    let mut cumulus = nephele::animate::cumulus::builtin_model("cumulus").unwrap();
+    save_model(&model, &cumulus).unwrap();
+    let path = dir.join("shot.ron");
+    std::fs::write(
+        &path,
+        scene(20.0, "4").replace("Model(\"builtin:cumulus\")", "Model(\"model.ron\")"),
+    )
+    .unwrap();
+    let view = View::start(&dir, &path, &dir.join("cache"));
+    view.wait_loaded();
+    let before = view.get("/frame.png?g=1&f=4").1;
+    // Saved as editors and exporters do: a temporary renamed over the file.
+    cumulus.blobs.truncate(cumulus.blobs.len() / 2);
+    let tmp = dir.join("model.ron.tmp");
+    save_model(&tmp, &cumulus).unwrap();
+    std::fs::rename(&tmp, &model).unwrap();
+    state_when(&view, |s| s["current"]["id"] == 2);
+    let after = view.get("/frame.png?g=2&f=4").1;
+    assert_ne!(before, after, "the model's save did not change the picture");
+    // A model that does not read: its error, the last good scene kept.
+    std::fs::write(&model, "Model(blobs: [oops").unwrap();
+    let s = state_when(&view, |s| s["error"].is_string());
+    assert!(s["error"].as_str().unwrap().contains("model.ron"), "{s}");
+    assert_eq!(s["current"]["id"], 2);
+    assert_eq!(view.get("/frame.png?g=2&f=4").1, after);
+}
