@@ -31,6 +31,7 @@ pub mod progress;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod spline;
 pub mod test_hook;
 pub mod view;
 

@@ -67,6 +67,13 @@ class OBJECT_OT_nephele_cloud(bpy.types.Operator):
     scene_frames: BoolProperty(name="Scene frame range", description="The shot is the scene's "
                                "frames (start to end); off: Seconds from the start frame",
                                default=True)
+    start_at_cursor: BoolProperty(name="Start at the 3D cursor", description="Diffusion: the "
+                                  "cloud starts from the blob nearest the 3D cursor (place the "
+                                  "cursor on or in the mesh)", default=False)
+    use_timing: BoolProperty(name="Timing from nephele_progress", description="Retime the shot "
+                             "by the object's animated custom property 'nephele_progress' (0 = "
+                             "the first pose, 1 = formed; key it in the Graph Editor to slow "
+                             "down, hold, speed up or run backwards)", default=True)
 
     @classmethod
     def poll(cls, context):
@@ -80,7 +87,16 @@ class OBJECT_OT_nephele_cloud(bpy.types.Operator):
         if self.scene_frames:
             seconds = (scene.frame_end - scene.frame_start + 1) / fps
         width, height = core.render_size(scene)
-        settings = core.ShotSettings(
+        obj = context.active_object
+        start = core.start_from_cursor(scene) if self.start_at_cursor else None
+        frames = core.shot_frames(core.ShotSettings(seconds=seconds, fps=fps,
+                                                    start_frame=scene.frame_start))
+        try:
+            timing = core.timing_from_property(obj, scene, frames, fps) if self.use_timing else None
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        settings = core.ShotSettings(start=start, timing=timing,
             blobs=self.blobs, animation=self.animation, seconds=seconds,
             fps=fps, start_frame=scene.frame_start, width=width, height=height,
             shutter=self.shutter, quality=self.quality, voxels_per_diagonal=self.voxels,

@@ -67,6 +67,46 @@ class ShotSettings:
     #: the animation's still target at the end (nephele's default 0.5 s when None); a shot
     #: shorter than this is all hold: every frame the same and `vel` zero.
     hold_seconds: Optional[float] = None
+    #: where a diffusion starts (`animation: Diffusion((start: ...))`), in nephele's axes: the
+    #: first blob shown is the one nearest this point (`start_from_cursor` gives the 3D cursor).
+    start: Optional[Vec] = None
+    #: the retime curve (`timing: [...]`): (seconds from the first frame, progress in [0, 1],
+    #: "Linear" or "Smooth") keys (`timing_from_property` samples an animated property).
+    timing: Optional[List[Tuple[float, float, str]]] = None
+
+
+#: The custom property whose animation is the shot's timing curve: key `nephele_progress` on
+#: the mesh object (0 = the scheme's first pose, 1 = the target formed) in the Graph Editor.
+TIMING_PROPERTY = "nephele_progress"
+
+
+def start_from_cursor(scene) -> Vec:
+    """The 3D cursor in nephele's axes: where a diffusion starts."""
+    return to_nephele(tuple(scene.cursor.location))
+
+
+def timing_from_property(obj, scene, frames: Sequence[int], fps: float) -> Optional[List[Tuple[float, float, str]]]:
+    """The timing curve keyed on `obj[TIMING_PROPERTY]`, read at every shot frame (so any
+    interpolation, easing or modifier of its F-curve counts) as linear `timing` keys; None when
+    the object has no such property. ValueError (naming the frame) for a progress outside
+    [0, 1]. Restores the current frame."""
+    if TIMING_PROPERTY not in obj.keys():
+        return None
+    current = scene.frame_current
+    keys = []
+    try:
+        for frame in frames:
+            scene.frame_set(frame)
+            p = float(obj[TIMING_PROPERTY])
+            if not (0.0 <= p <= 1.0):
+                raise ValueError(f"frame {frame}: {obj.name}[{TIMING_PROPERTY!r}] is {p}; the "
+                                 "progress is a fraction of the motion in [0, 1]")
+            keys.append(((frame - frames[0]) / fps, p, "Linear"))
+    finally:
+        scene.frame_set(current)
+    if len(keys) == 1:
+        keys.append((keys[0][0] + 1.0 / fps, keys[0][1], "Linear"))
+    return keys
 
 
 # --- mesh export (no operator: works in background mode and any context) -------------------
@@ -119,14 +159,22 @@ def scene_text(mesh_file: str, out_dir: Path, name: str, s: ShotSettings, diagon
     fit += ")"
     if s.animation not in ("Diffusion", "Aggregation"):
         raise ValueError(f"animation {s.animation!r}: Diffusion or Aggregation")
-    options = f"hold_seconds: {float(s.hold_seconds)!r}" if s.hold_seconds is not None else ""
-    animation = f"{s.animation}(({options}))"
+    options = [f"hold_seconds: {float(s.hold_seconds)!r}"] if s.hold_seconds is not None else []
+    if s.start is not None:
+        if s.animation != "Diffusion":
+            raise ValueError("a start point steers a Diffusion only")
+        options.append("start: ({!r}, {!r}, {!r})".format(*(float(c) for c in s.start)))
+    animation = f"{s.animation}(({', '.join(options)}))"
+    timing = ""
+    if s.timing:
+        keys = ", ".join(f"(time: {float(t)!r}, progress: {float(p)!r}, ease: {e})" for t, p, e in s.timing)
+        timing = f"\n    timing: [{keys}],"
     formats = ", ".join(["Vdb", *[f for f in s.extra_formats if f != "Vdb"]])
     out = str(out_dir).replace("\\", "/").replace('"', '\\"')
     return f"""// Written by the nephele Blender add-on. Y-up: Blender's Z is nephele's Y.
 Scene(
     target: {fit},
-    animation: {animation},
+    animation: {animation},{timing}
     camera: {s.camera},
     shot: (width: {s.width}, height: {s.height}, fps: {s.fps!r}, seconds: {s.seconds!r}, shutter: {s.shutter!r}, start_frame: {s.start_frame}),
     quality: {s.quality},

@@ -1,12 +1,16 @@
 //! How the shot plays a planned animation (issue 51): a [`Wind`] that carries the whole cloud,
-//! and a keyed retime curve ([`Timing`]) from the shot's time to the scheme's progress.
+//! a keyed retime curve ([`Timing`]) from the shot's time to the scheme's progress, and a
+//! target that moves ([`TargetMotion`], the keyed `transform`).
 //!
 //! A [`Direction`] wraps the plan's own paths: the blobs at shot time `t` are the plan's blobs
-//! at scheme time `s(t)` (the retime; `s(t) = t` without one), each moved by `wind · t`. The
+//! at scheme time `s(t)` (the retime; `s(t) = t` without one), carried by the target's motion
+//! `M(t)` (keyed in the shot's time, [`Direction::carry`]), then moved by `wind · t`. The
 //! billows are anchored to the blobs' frames, so they drift with them. Velocities are the same
 //! centred difference of these blobs in the shot's time ([`VelocityField::of_path`]), so they
 //! hold the wind and follow the retimed speed (`v = ds/dt · v_scheme + wind`, the chain rule).
-//! Without wind and retime the blobs and velocities are the plan's own, bit for bit.
+//! A deforming target ([`super::deform`]) carries each blob with the surface around it, at the
+//! shot's time, before the wind. Without wind, retime and deformation the blobs and velocities
+//! are the plan's own, bit for bit.
 //!
 //! The retime's progress is a fraction of the scheme's own motion (0 = its first pose, 1 = the
 //! target formed: the end of the motion, `hold_seconds` before the shot's end as planned), so
@@ -17,6 +21,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::target_motion::{Similarity, TargetMotion};
 use super::{Plan, VelocityField};
 use crate::blobby::Blob;
 
@@ -152,15 +157,21 @@ impl Timing {
     }
 }
 
-/// How the shot plays its plan: wind and retime (both optional).
+/// How the shot plays its plan: wind, retime, a deforming target and the target's keyed motion
+/// (all optional).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Direction {
     /// The wind, if any.
     pub wind: Option<Wind>,
     /// The retime curve, if any.
     pub timing: Option<Timing>,
+    /// The keyed target transform's motion, if the target moves.
+    pub motion: Option<TargetMotion>,
     /// Seconds of the scheme's motion (progress 1), from the plan's timeline.
     pub motion_seconds: f64,
+    /// The deforming target's motion of the blobs (in the shot's time, not the retimed
+    /// scheme's: the mesh sequence plays at the shot's frames), if the target bends.
+    pub deform: Option<std::sync::Arc<super::Deformation>>,
 }
 
 impl Direction {
@@ -170,13 +181,44 @@ impl Direction {
         Direction {
             wind,
             timing,
+            motion: None,
             motion_seconds: plan.timeline().motion_seconds(),
+            deform: None,
         }
+    }
+
+    /// This direction with the target moving by `motion` (`None`: it stays put).
+    pub fn with_motion(self, motion: Option<TargetMotion>) -> Direction {
+        Direction { motion, ..self }
     }
 
     /// True when the shot plays the plan as planned (the blobs are the plan's, bit for bit).
     pub fn is_plain(&self) -> bool {
-        self.wind.is_none() && self.timing.is_none()
+        self.wind.is_none()
+            && self.timing.is_none()
+            && self.motion.is_none()
+            && self.deform.is_none()
+    }
+
+    /// The target's motion at `t` seconds (the identity when it stays put).
+    pub fn target_motion(&self, t: f64) -> Similarity {
+        self.motion
+            .as_ref()
+            .map_or(Similarity::IDENTITY, |m| m.carry(t))
+    }
+
+    /// Where a point `p` of the plan's cloud is at the shot's time `t`: carried by the target's
+    /// motion and the wind (`p` itself when neither moves it).
+    pub fn carry(&self, t: f64, p: DVec3) -> DVec3 {
+        let p = match &self.motion {
+            Some(m) => m.carry(t).apply_point(p),
+            None => p,
+        };
+        if self.wind.is_some() {
+            p + self.drift(t)
+        } else {
+            p
+        }
     }
 
     /// The scheme's time at the shot's time `t` (seconds): `t` without a retime, else the
@@ -196,6 +238,12 @@ impl Direction {
     /// The blobs at the shot's time `t` seconds (any time, also between frames).
     pub fn at(&self, plan: &Plan, t: f64) -> Vec<Blob> {
         let mut blobs = plan.at(self.scheme_time(t));
+        if let Some(d) = &self.deform {
+            d.apply(&mut blobs, t);
+        }
+        if let Some(m) = &self.motion {
+            m.carry(t).apply(&mut blobs);
+        }
         if self.wind.is_some() {
             let d = self.drift(t);
             for b in &mut blobs {

@@ -15,6 +15,7 @@
 
 pub mod aggregation;
 pub mod cumulus;
+pub mod deform;
 pub mod diffusion;
 pub mod direct;
 pub mod mattes;
@@ -22,6 +23,7 @@ pub mod morph;
 pub mod pieces;
 mod repulsion;
 pub mod stats;
+pub mod target_motion;
 pub mod velocity;
 
 use glam::{DQuat, DVec3};
@@ -31,10 +33,12 @@ use crate::blobby::{Blob, BlobModel};
 use crate::geometry::Aabb;
 
 pub use aggregation::{AggregationConfig, AggregationPlan, Easing, Plane, Planes};
+pub use deform::Deformation;
 pub use diffusion::{DetailArrival, DiffusionConfig, DiffusionPlan, EarlyShape};
 pub use direct::{Direction, Ease, Timing, TimingKey, Wind};
 pub use mattes::MatteNames;
 pub use morph::{MorphConfig, MorphPlan};
+pub use target_motion::{PlacementKey, Similarity, TargetMotion};
 pub use velocity::{BlobMotion, VelocityField};
 
 /// Errors of the animation stage: settings that cannot produce an animation.
@@ -237,12 +241,10 @@ pub fn plan_with_source<S>(
             timeline,
             seed,
         )),
-        Animation::Diffusion(c) => Plan::Diffusion(DiffusionPlan::new(
-            c,
-            &model.blobs,
-            model.threshold,
-            timeline,
-        )),
+        Animation::Diffusion(c) => Plan::Diffusion({
+            c.check_target(&model.blobs)?;
+            DiffusionPlan::new(c, &model.blobs, model.threshold, timeline)
+        }),
         Animation::Morph(c) => {
             let source = source.ok_or(AnimateError::MissingSource)?;
             Plan::Morph(MorphPlan::new(c, &source.blobs, &model.blobs, timeline))

@@ -10,13 +10,26 @@ mod icosphere;
 pub use icosphere::icosphere;
 mod knot;
 mod sdf;
+mod waving;
+pub use waving::{WAVING_FRAMES, waving_tube, waving_tube_frames};
 
 use glam::DVec3;
 
 use super::{Mesh, MeshError};
 
 /// Names accepted by [`builtin`].
-pub const NAMES: &[&str] = &["sphere", "ellipsoid", "torus-knot", "duck", "bunny-toy"];
+pub const NAMES: &[&str] = &[
+    "sphere",
+    "ellipsoid",
+    "torus-knot",
+    "duck",
+    "bunny-toy",
+    "waving-tube",
+];
+
+/// Names of the builtin shapes that deform over frames (a mesh sequence of one topology; see
+/// [`crate::mesh::sequence`]); as a single mesh each is its rest frame.
+pub const DEFORMING: &[&str] = &["waving-tube"];
 
 /// Semi-axes of `builtin:ellipsoid` (x, y, z).
 pub const ELLIPSOID_SEMI_AXES: DVec3 = DVec3::new(1.5, 1.0, 0.6);
@@ -32,7 +45,9 @@ const ICOSPHERE_LEVEL: u32 = 4;
 /// - `ellipsoid`: the same icosphere scaled to semi-axes [`ELLIPSOID_SEMI_AXES`];
 /// - `torus-knot`: a thin tube around a (2,3) torus knot (trefoil), genus 1;
 /// - `duck`: a rubber duck facing +X (body, head, beak, tail, flat base);
-/// - `bunny-toy`: a sitting toy rabbit facing +X (body, head, two long ears, tail, feet).
+/// - `bunny-toy`: a sitting toy rabbit facing +X (body, head, two long ears, tail, feet);
+/// - `waving-tube`: a round-ended tube standing on +Y, the rest frame of a tube whose centre
+///   line waves over [`WAVING_FRAMES`] frames ([`waving_tube_frames`]).
 pub fn builtin(name: &str) -> Result<Mesh, MeshError> {
     match name {
         "sphere" => Ok(icosphere::icosphere(ICOSPHERE_LEVEL)),
@@ -47,6 +62,7 @@ pub fn builtin(name: &str) -> Result<Mesh, MeshError> {
         "torus-knot" => Ok(knot::torus_knot()),
         "duck" => Ok(figures::duck()),
         "bunny-toy" => Ok(figures::bunny_toy()),
+        "waving-tube" => Ok(waving::waving_tube(0)),
         _ => Err(MeshError::UnknownBuiltin {
             name: name.to_string(),
             known: NAMES.join(", "),

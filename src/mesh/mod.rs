@@ -8,6 +8,7 @@ pub mod builtin;
 pub mod io;
 pub mod marching_cubes;
 pub mod sample;
+pub mod sequence;
 pub mod simplify;
 pub mod winding;
 
@@ -212,12 +213,18 @@ impl Mesh {
 /// Load a mesh from a file (OBJ, PLY, OFF, STL by extension) or a `builtin:NAME` shape;
 /// validate it and make it outward-oriented. Open meshes load with a warning.
 pub fn load(source: &str) -> Result<LoadedMesh, MeshError> {
-    let (mut mesh, path) = if let Some(name) = source.strip_prefix("builtin:") {
-        (builtin::builtin(name)?, PathBuf::from(source))
+    let mesh = if let Some(name) = source.strip_prefix("builtin:") {
+        builtin::builtin(name)?
     } else {
-        let path = PathBuf::from(source);
-        (io::read_mesh(&path)?, path)
+        io::read_mesh(Path::new(source))?
     };
+    prepare(mesh, source)
+}
+
+/// A mesh already in memory (e.g. a deforming target's rest frame) made ready as [`load`]
+/// makes a file's: validated and outward-oriented, with the same warnings. `source` names it.
+pub fn prepare(mut mesh: Mesh, source: &str) -> Result<LoadedMesh, MeshError> {
+    let path = PathBuf::from(source);
     mesh.validate(&path)?;
     let mut warnings = Vec::new();
     let open_edges = mesh.boundary_edge_count();

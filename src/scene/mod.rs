@@ -144,6 +144,8 @@ pub struct Scene {
     pub name: String,
     /// The holdouts (read and placed) and the ground plane, when the scene has any.
     pub surfaces: Option<std::sync::Arc<crate::render::Surfaces>>,
+    /// The target's mesh sequence, when the target deforms (`file::deforming`).
+    pub deforming: Option<std::sync::Arc<crate::mesh::sequence::MeshSequence>>,
 }
 
 impl SceneError {
@@ -231,8 +233,16 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         }
         Ok(full.to_string_lossy().into_owned())
     };
+    // A deforming target's frames are read now: a gap, one frame or a frame of another
+    // topology is an error at `target.mesh`.
+    let deforming = file::deforming::load(base, &file)
+        .map_err(|(field, message)| invalid_at(&field, message))?;
     match &mut file.target {
         Target::Model(p) => *p = resolve(p)?,
+        // A sequence's pattern names no one file.
+        Target::Fit { mesh, .. } if crate::mesh::sequence::is_pattern(mesh) => {
+            *mesh = base.join(&*mesh).to_string_lossy().into_owned()
+        }
         Target::Fit { mesh, .. } => *mesh = resolve(mesh)?,
     }
     // A tracked camera's lines are read now: every frame of the shot must have one.
@@ -312,5 +322,6 @@ pub fn scene_from_str(path: &Path, text: &str) -> Result<Scene, SceneError> {
         output_dir,
         name,
         surfaces,
+        deforming,
     })
 }

@@ -385,12 +385,16 @@ impl Session {
     /// `draft-<the fit's cache name>`. `None` when there is nothing to draft (or the draft
     /// fails: the fit then says why).
     fn draft(&self, scene: &Scene) -> Option<Scene> {
-        use crate::scene::target::{fit_cache_file, fit_config};
+        use crate::scene::target::{fit_config, target_cache_file};
+        // A deforming target's rest frame is not a mesh file to draft from: its fit only.
+        if scene.deforming.is_some() {
+            return None;
+        }
         let cfg = fit_config(&scene.file.target)?;
         let scene::Target::Fit { mesh, .. } = &scene.file.target else {
             return None;
         };
-        let file = fit_cache_file(mesh, &cfg, &self.cache).ok()?;
+        let file = target_cache_file(scene, &self.cache).ok()??;
         if file.exists() {
             return None;
         }

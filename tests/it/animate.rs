@@ -507,6 +507,61 @@ fn horse_diffusion_meets_the_bars_standing_upright() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// Issue 51, a steered diffusion: the duck's one-piece, smoothness and never-shrinking bars hold
+/// from a start at the beak and at the flank, and the first visible blob is the one nearest the
+/// start. One fit, shared by the shots. Not yet met (measured with `render --preview --stats`,
+/// so not asserted here): from the tail, frame 65 splits on screen (largest piece 0.939 of the
+/// coverage, one frame; 3D one piece); from the underside, frame 114 holds 0.025 % of the final
+/// volume less than frame 113 (in the blend).
+#[test]
+fn duck_diffusion_meets_the_bars_from_any_start() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("scenes/duck-diffusion.ron")).unwrap();
+    let out = std::env::temp_dir().join(format!("nephele-bars-start-{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    for (name, start) in [
+        ("beak", DVec3::new(0.9, 0.44, 0.0)),
+        ("flank", DVec3::new(-0.1, -0.1, 0.5)),
+    ] {
+        let steered = text.replace(
+            "hold_seconds: 0.5))",
+            &format!(
+                "hold_seconds: 0.5, start: ({}, {}, {})))",
+                start.x, start.y, start.z
+            ),
+        );
+        assert_ne!(steered, text, "the scene's animation line changed");
+        let path = out.join(format!("duck-{name}.ron"));
+        std::fs::write(&path, steered).unwrap();
+        let scene = nephele::scene::load_scene(&path).unwrap();
+        let opts = nephele::scene::RenderOptions {
+            output: Some(out.clone()),
+            preview: true,
+            ..Default::default()
+        };
+        let shot = nephele::scene::Shot::open(scene.clone(), &opts).unwrap();
+        let prep = shot.prepared().unwrap();
+        let first = shot.blobs(0).unwrap();
+        let shown: Vec<usize> = (0..first.len()).filter(|&i| first[i].is_live()).collect();
+        let rho = |b: &Blob| (b.rotation.inverse() * (start - b.center) / b.semi_axes).length();
+        let nearest = (0..prep.model.blobs.len())
+            .filter(|&i| prep.model.blobs[i].is_live())
+            .min_by(|&a, &b| rho(&prep.model.blobs[a]).total_cmp(&rho(&prep.model.blobs[b])))
+            .unwrap();
+        assert_eq!(shown, vec![nearest], "{name}: the first visible blob");
+        let stats = shot_stats(&scene, &opts, 8).unwrap();
+        let label = format!("duck-diffusion from the {name}");
+        assert_one_piece_and_smooth(&label, &scene, &stats, 0.35);
+        assert_grows(&label, &scene, &stats, 0.0);
+        let worst = stats
+            .iter()
+            .map(|s| s.volume.largest_share())
+            .fold(1.0f64, f64::min);
+        eprintln!("{label}: blob {nearest} first, smallest largest-piece share {worst:.3}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 #[test]
 fn cumulus_to_duck_morph_stays_one_piece() {
     let (scene, stats) = shipped_stats("cumulus-to-duck.ron").unwrap();

@@ -101,11 +101,11 @@ fn openvdb_read(path: &Path) -> Option<Dump> {
 }
 
 /// Active voxels as OpenVDB reads them: `(ijk, world centre, value components)`.
-type Voxels = Vec<([i32; 3], [f64; 3], Vec<f32>)>;
+pub(crate) type Voxels = Vec<([i32; 3], [f64; 3], Vec<f32>)>;
 
 /// Run `tools/vdb_dump.py` on grid `name` of `path`: its JSON header and active voxels;
 /// `None` (after saying why) when OpenVDB's python module is not installed.
-fn openvdb_grid(path: &Path, name: &str) -> Option<(serde_json::Value, Voxels)> {
+pub(crate) fn openvdb_grid(path: &Path, name: &str) -> Option<(serde_json::Value, Voxels)> {
     let out = path.with_extension(format!("{name}.dump.txt"));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/vdb_dump.py");
     let run = Command::new("/usr/bin/python3")

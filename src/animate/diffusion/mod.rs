@@ -75,7 +75,7 @@ mod order;
 use blend::{BlendPath, GRID_STEPS};
 use early::{blend_b, early_shape, volume_paced_finish};
 use order::order_by_nearest;
-pub use order::{category_ii_count, display_order};
+pub use order::{Steering, category_ii_count, display_order};
 
 /// Size of blob I on the first frame, relative to its full size ("one small piece").
 const SEED_SIZE: f64 = 0.35;
@@ -128,6 +128,14 @@ pub struct DiffusionConfig {
     pub early_shape: EarlyShape,
     /// How category III arrives.
     pub category_iii: DetailArrival,
+    /// Where the diffusion starts (world units, the target placed at the first frame): blob I
+    /// is the live blob nearest this point. Default: none, the largest blob.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<DVec3>,
+    /// Blob indices (the model's) shown first, in this order: the first is blob I unless
+    /// `start` picks it, the others open category II. Default: none, the paper's order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub order: Vec<usize>,
 }
 
 impl Default for DiffusionConfig {
@@ -139,6 +147,8 @@ impl Default for DiffusionConfig {
             hold_seconds: 0.5,
             early_shape: EarlyShape::Ellipsoids,
             category_iii: DetailArrival::Together,
+            start: None,
+            order: Vec::new(),
         }
     }
 }
@@ -150,7 +160,82 @@ impl DiffusionConfig {
         check_seconds("final_grow_seconds", self.final_grow_seconds)?;
         check_seconds("hold_seconds", self.hold_seconds)?;
         check_fraction("category_ii", self.category_ii, 1.0)?;
+        if let Some(p) = self.start
+            && !p.is_finite()
+        {
+            return Err(super::invalid(
+                "animation.start",
+                format!("must be a finite point, got {p}"),
+            ));
+        }
+        if let Some((k, &i)) = self
+            .order
+            .iter()
+            .enumerate()
+            .find(|&(k, i)| self.order[..k].contains(i))
+        {
+            return Err(super::invalid(
+                "animation.order",
+                format!(
+                    "blob {i} is listed twice (entries {} and {k}); list each blob once",
+                    self.order.iter().position(|j| *j == i).unwrap_or(0)
+                ),
+            ));
+        }
         Ok(())
+    }
+
+    /// Check the steering against the target's blobs (world units): `start` inside the
+    /// target's box, `order` naming live blobs of the model.
+    pub fn check_target(&self, target: &[Blob]) -> Result<(), AnimateError> {
+        if let Some(p) = self.start {
+            let b = blob_bounds(target);
+            let inside = (p.cmpge(b.min) & p.cmple(b.max)).all();
+            if !inside {
+                return Err(super::invalid(
+                    "animation.start",
+                    format!(
+                        "({}, {}, {}) is outside the target's box ({:.4}, {:.4}, {:.4}) to \
+                         ({:.4}, {:.4}, {:.4}) (world units, the target placed by `transform` \
+                         at the first frame); pick a point on or in the target",
+                        p.x, p.y, p.z, b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+                    ),
+                ));
+            }
+        }
+        for (k, &i) in self.order.iter().enumerate() {
+            match target.get(i) {
+                None => {
+                    return Err(super::invalid(
+                        "animation.order",
+                        format!(
+                            "entry {k} names blob {i}, but the target has {} blobs (0 to {})",
+                            target.len(),
+                            target.len().saturating_sub(1)
+                        ),
+                    ));
+                }
+                Some(b) if !b.is_live() => {
+                    return Err(super::invalid(
+                        "animation.order",
+                        format!(
+                            "entry {k} names blob {i}, which the fit switched off (B = 0); it \
+                             is never shown"
+                        ),
+                    ));
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// The artist's steering of the display order.
+    pub fn steering(&self) -> Steering {
+        Steering {
+            start: self.start,
+            order: self.order.clone(),
+        }
     }
 }
 
@@ -320,7 +405,7 @@ impl DiffusionPlan {
         let early = early_shape(target, strength);
         let early_b: Vec<f64> = early.iter().map(|b| b.b).collect();
         let connected = strength > 0.0;
-        let (mut order, n_ii) = display_order(&early, threshold, n_ii, connected);
+        let (mut order, n_ii) = display_order(&early, threshold, n_ii, connected, &cfg.steering());
         // III nearest-first from the cloud of I and II: each III blob then has a parent nearer
         // the cloud than itself, so III grows out as chains, not as lone blobs.
         order_by_nearest(target, &mut order, 1 + n_ii);

@@ -1,6 +1,7 @@
 //! The display order of the diffusion scheme: which blob appears next (paper §5.2.2: the next
 //! category-II blob is the one whose centre has the smallest signed distance to the current
-//! surface; category III follows by nearness).
+//! surface; category III follows by nearness), optionally steered by the artist ([`Steering`]:
+//! where it starts, which blobs come first).
 
 use glam::DVec3;
 
@@ -50,53 +51,129 @@ pub fn category_ii_count(n: usize, fraction: f64) -> usize {
     k.min(n - 1)
 }
 
+/// How the artist steers the display order (the diffusion's `start` and `order`; nothing by
+/// default, the paper's order).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Steering {
+    /// Where the diffusion starts: blob I is the live blob nearest this point (in its own
+    /// ellipsoidal radius, so the blob the point is in, or the one it is nearest to).
+    pub start: Option<DVec3>,
+    /// Blobs shown first, in this order (checked: live, each once). Blob I is the first of
+    /// them unless `start` picks it; the others open category II in the written order.
+    pub order: Vec<usize>,
+}
+
+impl Steering {
+    /// True when nothing is steered (the paper's order, bit for bit).
+    pub fn is_none(&self) -> bool {
+        self.start.is_none() && self.order.is_empty()
+    }
+}
+
 /// Display order of the live blobs: the first, then the next `n_ii` (category II) greedily by
 /// signed distance to the visible surface, then the rest (category III) in selection order.
 /// Returns the order and the number of category-II blobs placed: with `connected`, a II blob
 /// is placed only if it joins the visible cloud (the segment from its centre to the centre of
 /// its nearest visible blob lies inside the cloud with it added); the nearest connecting one
 /// goes next, and those that never connect are deferred to the front of category III.
+///
+/// Steered ([`Steering`]): blob I is the one nearest `start` (else the first of `order`), the
+/// listed blobs open category II in their order (placed whether they join or not: the artist's
+/// choice), and the paper's rule places the rest of II around them. When no II blob joins the
+/// cloud (a start far from the large blobs), the joining live blob of smallest signed distance
+/// is placed as a bridge toward them, so the early cloud still grows in one piece.
 pub fn display_order(
     blobs: &[Blob],
     threshold: f64,
     n_ii: usize,
     connected: bool,
+    steering: &Steering,
 ) -> (Vec<usize>, usize) {
     let live: Vec<usize> = (0..blobs.len()).filter(|&i| blobs[i].is_live()).collect();
-    let Some((&first, rest)) = live.split_first() else {
+    if live.is_empty() {
         return (Vec::new(), 0);
+    }
+    let first = match (steering.start, steering.order.first()) {
+        (Some(p), _) => nearest_blob(blobs, &live, p).expect("live blobs"),
+        (None, Some(&i)) => i,
+        (None, None) => live[0],
     };
-    let n_ii = n_ii.min(rest.len());
+    // The artist's blobs after the first, then the rest in selection order.
+    let listed: Vec<usize> = steering
+        .order
+        .iter()
+        .copied()
+        .filter(|&i| i != first)
+        .collect();
+    let rest: Vec<usize> = live
+        .iter()
+        .copied()
+        .filter(|&i| i != first && !listed.contains(&i))
+        .collect();
+    let n_ii = n_ii.saturating_sub(listed.len()).min(rest.len());
     let diag = blob_bounds(blobs).diagonal().max(f64::MIN_POSITIVE);
     let mut order = vec![first];
+    order.extend_from_slice(&listed);
     let mut remaining: Vec<usize> = rest[..n_ii].to_vec();
-    let mut visible_idx: Vec<usize> = vec![first];
-    let mut visible: Vec<Blob> = vec![blobs[first]];
+    let mut others: Vec<usize> = rest[n_ii..].to_vec();
+    let mut visible_idx: Vec<usize> = order.clone();
+    let mut visible: Vec<Blob> = order.iter().map(|&i| blobs[i]).collect();
+    let steered = !steering.is_none();
     while !remaining.is_empty() {
         let field = BlobField::new(&visible, threshold);
-        let mut ranked: Vec<(usize, f64)> = remaining
-            .iter()
-            .enumerate()
-            .map(|(r, &i)| (r, signed_distance(&field, &visible, blobs[i].center, diag)))
-            .collect();
-        // Stable: ties keep the lower index.
-        ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let pick = ranked
-            .iter()
-            .map(|&(r, _)| r)
-            .find(|&r| !connected || joins(&field, blobs, &visible_idx, &blobs[remaining[r]]));
-        let Some(pick) = pick else {
-            break;
+        let pick = next_joining(
+            &field,
+            blobs,
+            &visible,
+            &visible_idx,
+            &remaining,
+            connected,
+            diag,
+        );
+        let i = match pick {
+            Some(r) => remaining.remove(r),
+            None if steered && connected => {
+                // A bridge from the steered start toward the category-II blobs.
+                match next_joining(&field, blobs, &visible, &visible_idx, &others, true, diag) {
+                    Some(r) => others.remove(r),
+                    None => break,
+                }
+            }
+            None => break,
         };
-        let i = remaining.remove(pick);
         order.push(i);
         visible_idx.push(i);
         visible.push(blobs[i]);
     }
     let placed = order.len() - 1;
     order.extend_from_slice(&remaining);
-    order.extend_from_slice(&rest[n_ii..]);
+    order.extend_from_slice(&others);
     (order, placed)
+}
+
+/// The position in `candidates` of the next blob by the paper's rule: smallest signed distance
+/// to the cloud of `field` (ties to the earlier one), among those that join it when
+/// `connected`.
+fn next_joining(
+    field: &BlobField,
+    blobs: &[Blob],
+    visible: &[Blob],
+    visible_idx: &[usize],
+    candidates: &[usize],
+    connected: bool,
+    diag: f64,
+) -> Option<usize> {
+    let mut ranked: Vec<(usize, f64)> = candidates
+        .iter()
+        .enumerate()
+        .map(|(r, &i)| (r, signed_distance(field, visible, blobs[i].center, diag)))
+        .collect();
+    // Stable: ties keep the lower index.
+    ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+    ranked
+        .iter()
+        .map(|&(r, _)| r)
+        .find(|&r| !connected || joins(field, blobs, visible_idx, &blobs[candidates[r]]))
 }
 
 /// True when `blob`, added to the cloud of `field` (blobs `visible`), lies in one piece with

@@ -2,9 +2,9 @@
 //! optional orbit around the vertical axis over the shot; or keyframes.
 //!
 //! Keyframes (`camera: Keyframes([(time: 0.0, position: …, look_at: …, fov_deg: …), …])`) are
-//! interpolated by a cubic Hermite spline whose tangents are the Catmull–Rom ones for uneven
-//! times (`(p[i+1] − p[i−1]) / (t[i+1] − t[i−1])`, one-sided at the ends): position, look-at
-//! point and field of view pass through every key, smoothly. Before the first key and after
+//! interpolated by [`crate::spline::catmull_rom`] (a cubic Hermite spline with Catmull–Rom
+//! tangents for uneven times, as the target transform's keys): position, look-at point and
+//! field of view pass through every key, smoothly. Before the first key and after
 //! the last the camera holds still. At least two keys, strictly increasing finite times, finite
 //! points, `position ≠ look_at` and a field of view in (0, 180) — or the scene does not parse.
 
@@ -242,24 +242,9 @@ impl CameraKeyframes {
     /// The camera at `t` seconds.
     pub fn at(&self, t: f64) -> Camera {
         let k = &self.0;
-        let n = k.len();
-        let t = t.clamp(k[0].time, k[n - 1].time);
-        let i = k.windows(2).position(|w| t <= w[1].time).unwrap_or(n - 2);
-        let (t0, t1) = (k[i].time, k[i + 1].time);
-        let h = t1 - t0;
-        let s = ((t - t0) / h).clamp(0.0, 1.0) as f32;
-        let tangent = |j: usize, f: &dyn Fn(&CameraKey) -> Vec3| -> Vec3 {
-            let (a, b) = (j.saturating_sub(1), (j + 1).min(n - 1));
-            (f(&k[b]) - f(&k[a])) / (k[b].time - k[a].time) as f32
-        };
+        let times: Vec<f64> = k.iter().map(|c| c.time).collect();
         let hermite = |f: &dyn Fn(&CameraKey) -> Vec3| -> Vec3 {
-            let (s2, s3) = (s * s, s * s * s);
-            let (h00, h10) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s);
-            let (h01, h11) = (-2.0 * s3 + 3.0 * s2, s3 - s2);
-            f(&k[i]) * h00
-                + tangent(i, f) * (h10 * h as f32)
-                + f(&k[i + 1]) * h01
-                + tangent(i + 1, f) * (h11 * h as f32)
+            crate::spline::catmull_rom::<f32, Vec3>(&times, t, |j| f(&k[j]))
         };
         let fov = hermite(&|c| Vec3::splat(c.fov_deg)).x.clamp(1.0, 179.0);
         Camera {

@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod chan;
+pub mod deforming;
 pub mod holdouts;
 pub mod locate;
 pub mod transform;
@@ -386,6 +387,16 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
         return Err(bad(
             "ground.height",
             format!("must be a finite height in scene units, got {}", g.height),
+        ));
+    }
+    // A holdout is the plate's still geometry; only the target's transform is keyed.
+    if let Some(i) = s.holdouts.iter().position(|h| !h.transform.keys.is_empty()) {
+        return Err(bad(
+            "holdouts",
+            format!(
+                "holdouts[{i}].transform has keys; a holdout stays where its transform puts it \
+                 (only the target's transform may be keyed)"
+            ),
         ));
     }
     if let Some(i) = s.holdouts.iter().position(|h| h.mesh.trim().is_empty()) {

@@ -7,10 +7,22 @@
 //! turn about X) and `R_rot` rotates by `rotate_deg` degrees about the world's X, then Y, then
 //! Z axes. Every field has a default (the identity). Bad values (a scale that is not a positive
 //! finite number, a non-finite angle or offset) are parse errors located at the transform.
+//!
+//! A target that moves keys the transform over the shot:
+//! `transform: (up: Z, scale: 0.8, keys: [(time: 0.0, translate: (-2.0, 0.0, 0.0)),
+//! (time: 4.0, translate: (2.0, 0.5, 0.0), rotate_deg: (0.0, 30.0, 0.0))])`. Each key gives
+//! `time` (seconds from the first frame) and any of `translate`, `rotate_deg`, `scale`; a
+//! channel a key leaves out holds the transform's own value (so `scale: 0.8` above holds
+//! throughout). Between keys every channel follows the keyed camera's spline; before the first
+//! key and after the last the target holds. The plan is made with the target where the keys
+//! put it at `t = 0`, and [`crate::animate::TargetMotion`] carries the cloud from there. At
+//! least two keys, finite values, strictly increasing times and positive scales — or the scene
+//! does not parse.
 
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
+use crate::animate::target_motion::{PlacementKey, TargetMotion, check_keys, placement_rotation};
 use crate::blobby::Blob;
 
 /// Which of the model's axes points up.
@@ -68,13 +80,27 @@ impl Up {
 }
 
 /// The fields as written; checked into a [`TargetTransform`].
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default, rename = "TargetTransform")]
 struct Written {
     up: Up,
     rotate_deg: DVec3,
     scale: f64,
     translate: DVec3,
+    keys: Vec<WrittenKey>,
+}
+
+/// A key as written: a channel left out holds the transform's own value.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, rename = "PlacementKey")]
+struct WrittenKey {
+    time: f64,
+    #[serde(default)]
+    translate: Option<DVec3>,
+    #[serde(default)]
+    rotate_deg: Option<DVec3>,
+    #[serde(default)]
+    scale: Option<f64>,
 }
 
 impl Default for Written {
@@ -85,12 +111,13 @@ impl Default for Written {
             rotate_deg: t.rotate_deg,
             scale: t.scale,
             translate: t.translate,
+            keys: Vec::new(),
         }
     }
 }
 
-/// Orientation, size and place of the target in the shot.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Orientation, size and place of the target in the shot; with `keys`, over the shot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "Written")]
 pub struct TargetTransform {
     /// The model's up axis, turned to +Y.
@@ -101,6 +128,11 @@ pub struct TargetTransform {
     pub scale: f64,
     /// Offset, after rotation and scale.
     pub translate: DVec3,
+    /// The keys of a target that moves (empty: it stays where the fields above put it). With
+    /// keys, `rotate_deg`, `scale` and `translate` hold the placement at `t = 0`, where the
+    /// plan is made, and every key holds all three channels.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keys: Vec<PlacementKey>,
 }
 
 impl Default for TargetTransform {
@@ -110,6 +142,7 @@ impl Default for TargetTransform {
             rotate_deg: DVec3::ZERO,
             scale: 1.0,
             translate: DVec3::ZERO,
+            keys: Vec::new(),
         }
     }
 }
@@ -136,12 +169,30 @@ impl TryFrom<Written> for TargetTransform {
                 w.translate
             ));
         }
-        Ok(TargetTransform {
+        let keys: Vec<PlacementKey> = w
+            .keys
+            .iter()
+            .map(|k| PlacementKey {
+                time: k.time,
+                translate: k.translate.unwrap_or(w.translate),
+                rotate_deg: k.rotate_deg.unwrap_or(w.rotate_deg),
+                scale: k.scale.unwrap_or(w.scale),
+            })
+            .collect();
+        let mut t = TargetTransform {
             up: w.up,
             rotate_deg: w.rotate_deg,
             scale: w.scale,
             translate: w.translate,
-        })
+            keys,
+        };
+        if !t.keys.is_empty() {
+            check_keys(&t.keys)?;
+            // The plan's placement: the keys' channels at the first frame.
+            let (translate, rotate_deg, scale) = t.motion().expect("checked keys").channels(0.0);
+            (t.translate, t.rotate_deg, t.scale) = (translate, rotate_deg, scale);
+        }
+        Ok(t)
     }
 }
 
@@ -153,13 +204,18 @@ impl TargetTransform {
 
     /// The rotation `R_rot · R_up`.
     pub fn rotation(&self) -> DQuat {
-        let r = self.rotate_deg * (std::f64::consts::PI / 180.0);
-        let rot =
-            DQuat::from_rotation_z(r.z) * DQuat::from_rotation_y(r.y) * DQuat::from_rotation_x(r.x);
-        (rot * self.up.rotation()).normalize()
+        placement_rotation(self.up.rotation(), self.rotate_deg)
     }
 
-    /// A model point in the shot.
+    /// The keyed motion over the shot, `None` for a target that stays put.
+    pub fn motion(&self) -> Option<TargetMotion> {
+        if self.keys.is_empty() {
+            return None;
+        }
+        TargetMotion::new(self.up.rotation(), self.keys.clone()).ok()
+    }
+
+    /// A model point in the shot (at `t = 0` for a target that moves).
     pub fn apply_point(&self, p: DVec3) -> DVec3 {
         self.translate + self.scale * (self.rotation() * p)
     }
@@ -190,6 +246,7 @@ mod tests {
             rotate_deg: DVec3::new(0.0, 90.0, 0.0),
             scale: 2.0,
             translate: DVec3::new(1.0, 0.0, 0.0),
+            keys: Vec::new(),
         };
         // Z up -> Y; then 90° about Y takes -Z (the old +Y) to -X.
         let up = t.apply_point(DVec3::Z) - t.apply_point(DVec3::ZERO);
@@ -218,5 +275,47 @@ mod tests {
         assert_eq!(Up::from_name("-y"), Some(Up::NegY));
         assert_eq!(Up::from_name("NegX"), Some(Up::NegX));
         assert_eq!(Up::from_name("w"), None);
+    }
+
+    #[test]
+    fn keys_hold_the_channels_they_leave_out_and_bad_keys_are_refused() {
+        let parse = |text: &str| {
+            ron::Options::default()
+                .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+                .from_str::<TargetTransform>(text)
+        };
+        let t = parse(
+            "(up: Z, scale: 2.0, rotate_deg: (0.0, 10.0, 0.0), keys: [(time: 0.0, translate: \
+             (1.0, 0.0, 0.0)), (time: 2.0, translate: (3.0, 0.0, 0.0), rotate_deg: (0.0, 90.0, \
+             0.0))])",
+        )
+        .unwrap();
+        // The rest placement is the keys' at t = 0; unkeyed channels hold the fields' values.
+        assert_eq!(t.translate, DVec3::new(1.0, 0.0, 0.0));
+        assert_eq!(t.rotate_deg, DVec3::new(0.0, 10.0, 0.0));
+        assert_eq!(t.scale, 2.0);
+        assert!(t.keys.iter().all(|k| k.scale == 2.0));
+        assert_eq!(t.keys[0].rotate_deg, DVec3::new(0.0, 10.0, 0.0));
+        let m = t.motion().expect("keyed");
+        let (tr, rot, s) = m.channels(1.0);
+        assert!((tr - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12);
+        assert!((rot.y - 50.0).abs() < 1e-12 && s == 2.0);
+        // The plan's placement is the motion's at t = 0.
+        let p = DVec3::new(0.2, 0.4, -0.1);
+        let rest = m.placement(0.0).apply_point(p);
+        assert!((rest - t.apply_point(p)).length() < 1e-12);
+        // Written back and read again: the same transform.
+        let again = parse(&ron::to_string(&t).unwrap()).unwrap();
+        assert_eq!(again, t);
+        assert!(TargetTransform::default().motion().is_none());
+        for (bad, needle) in [
+            ("(keys: [(time: 0.0)])", "at least two"),
+            ("(keys: [(time: 1.0), (time: 0.5)])", "increase"),
+            ("(keys: [(time: 0.0), (time: 1.0, scale: -1.0)])", "scale"),
+            ("(keys: [(time: 0.0), (time: 1.0, shear: 2.0)])", "shear"),
+        ] {
+            let e = parse(bad).unwrap_err().to_string();
+            assert!(e.contains(needle), "{bad}: {e}");
+        }
     }
 }

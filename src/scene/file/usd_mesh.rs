@@ -54,12 +54,79 @@ pub fn read(path: &Path, prim: Option<&str>) -> Result<Mesh, UsdReadError> {
 
 fn read_stage(path: &Path, prim: Option<&str>) -> Result<Mesh, UsdReadError> {
     let stage = Stage::open(path)?;
-    let prims = match prim {
+    let prims = mesh_prims(&stage, path, prim)?;
+    let mut mesh = Mesh {
+        positions: Vec::new(),
+        triangles: Vec::new(),
+    };
+    for p in &prims {
+        add_prim(&stage, p, &mut mesh, Time::Default)?;
+    }
+    Ok(mesh)
+}
+
+/// A stage's mesh at each of its time codes ([`read_frames`]).
+#[derive(Clone, Debug)]
+pub struct MeshFrames {
+    /// The mesh at each time code.
+    pub meshes: Vec<Mesh>,
+    /// The time codes, increasing.
+    pub time_codes: Vec<f64>,
+    /// The stage's `timeCodesPerSecond` (or `framesPerSecond`), if it states one.
+    pub time_codes_per_second: Option<f64>,
+}
+
+/// A deforming mesh from a stage: the `Mesh` prim at `prim` (or every visible one, as
+/// [`read`] takes them) at each time code where any of their `points` has a time sample
+/// (values between a prim's own samples interpolated, as USD does), placed by the world
+/// transform at that time.
+pub fn read_frames(path: &Path, prim: Option<&str>) -> Result<MeshFrames, UsdReadError> {
+    std::panic::catch_unwind(|| {
+        let stage = Stage::open(path)?;
+        let prims = mesh_prims(&stage, path, prim)?;
+        let mut times = Vec::new();
+        for p in &prims {
+            times.extend(stage.sample_times(p, "points")?);
+        }
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let mut meshes = Vec::with_capacity(times.len());
+        for &t in &times {
+            let mut mesh = Mesh::default();
+            for p in &prims {
+                add_prim(&stage, p, &mut mesh, Time::Code(t))?;
+            }
+            meshes.push(mesh);
+        }
+        Ok(MeshFrames {
+            meshes,
+            time_codes: times,
+            time_codes_per_second: stage.time_codes_per_second(),
+        })
+    })
+    .unwrap_or_else(|_| {
+        Err(UsdReadError {
+            field: Field::File,
+            message: format!(
+                "{}: the USD reader failed on this file (it may be malformed)",
+                path.display()
+            ),
+        })
+    })
+}
+
+/// The `Mesh` prim at `prim`, or every visible one.
+fn mesh_prims(
+    stage: &Stage,
+    path: &Path,
+    prim: Option<&str>,
+) -> Result<Vec<sdf::Path>, UsdReadError> {
+    Ok(match prim {
         Some(p) => vec![stage.typed_prim(p, "Mesh")?],
         None => {
             let mut meshes = Vec::new();
             for p in stage.prims()? {
-                if stage.type_name(&p)? == "Mesh" && !hidden(&stage, &p)? {
+                if stage.type_name(&p)? == "Mesh" && !hidden(stage, &p)? {
                     meshes.push(p);
                 }
             }
@@ -74,15 +141,7 @@ fn read_stage(path: &Path, prim: Option<&str>) -> Result<Mesh, UsdReadError> {
             }
             meshes
         }
-    };
-    let mut mesh = Mesh {
-        positions: Vec::new(),
-        triangles: Vec::new(),
-    };
-    for p in &prims {
-        add_prim(&stage, p, &mut mesh)?;
-    }
-    Ok(mesh)
+    })
 }
 
 /// Whether the prim at `path` or an ancestor is invisible, a guide or a proxy.
@@ -132,10 +191,15 @@ fn points(v: sdf::Value) -> Option<Vec<DVec3>> {
     }
 }
 
-/// Append the triangles of the `Mesh` prim at `path`, placed in the world, to `mesh`.
-fn add_prim(stage: &Stage, path: &sdf::Path, mesh: &mut Mesh) -> Result<(), UsdReadError> {
+/// Append the triangles of the `Mesh` prim at `path` at `time`, placed in the world, to `mesh`.
+fn add_prim(
+    stage: &Stage,
+    path: &sdf::Path,
+    mesh: &mut Mesh,
+    time: Time,
+) -> Result<(), UsdReadError> {
     let name = path.as_str();
-    let read = |attr: &str| stage.value(path, attr, Time::Default);
+    let read = |attr: &str| stage.value(path, attr, time);
     let mut local = match read("points")? {
         None => return Err(stage.error(format!("{name} has no points"))),
         Some(v) => points(v.clone())
@@ -163,7 +227,7 @@ fn add_prim(stage: &Stage, path: &sdf::Path, mesh: &mut Mesh) -> Result<(), UsdR
         read("orientation")?,
         Some(sdf::Value::Token(t)) if t.as_str() == "leftHanded"
     );
-    let world = stage.to_world(path, Time::Default)?;
+    let world = stage.to_world(path, time)?;
     if world != DMat4::IDENTITY {
         for p in &mut local {
             *p = world.transform_point3(*p);

@@ -228,6 +228,28 @@ impl Stage {
         authored("timeCodesPerSecond").or_else(|| authored("framesPerSecond"))
     }
 
+    /// The time codes of attribute `name`'s time samples on the prim at `path`, sorted (empty
+    /// when it has none).
+    pub fn sample_times(&self, path: &sdf::Path, name: &str) -> Result<Vec<f64>, UsdReadError> {
+        let attr = path
+            .append_property(name)
+            .map_err(|e| self.error(format!("{}.{name}: {e:#}", path.as_str())))?;
+        let samples = self
+            .stage
+            .attribute(attr)
+            .time_samples()
+            .map_err(|e| self.error(format!("{}.{name}: {e:#}", path.as_str())))?;
+        let mut times: Vec<f64> = samples
+            .into_iter()
+            .flatten()
+            .map(|(t, _)| t)
+            .filter(|t| t.is_finite())
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        Ok(times)
+    }
+
     /// The composed value of attribute `name` of the prim at `path`, at `time`; `None` when
     /// not authored (or blocked).
     pub fn value(

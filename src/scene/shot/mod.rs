@@ -64,6 +64,9 @@ pub struct Prepared {
     pub plan: Plan,
     /// Bounding box of the target's blobs (camera framing; its diagonal is the length unit).
     pub bounds: Aabb,
+    /// What the automatic camera frames: `bounds`, or for a target that moves (keyed
+    /// `transform`) the box holding it at every frame.
+    pub framing: Aabb,
     /// Where the target came from.
     pub origin: TargetOrigin,
     /// How the shot plays the plan: the scene's wind and retime.
@@ -291,7 +294,7 @@ impl Shot {
             height: self.height,
             camera: camera_at(
                 &f.camera,
-                &prep.bounds,
+                &prep.framing,
                 aspect,
                 u,
                 k as f64 / f.shot.fps,
@@ -311,10 +314,18 @@ impl Shot {
             },
             base: f.cloud.base.map(|b| {
                 let (bottom, height) = (prep.bounds.min.y, prep.bounds.max.y - prep.bounds.min.y);
-                // The base drifts with the cloud (only when there is a wind: same bits without).
-                let bottom = match prep.direction.wind {
-                    Some(_) => bottom + prep.direction.drift(k as f64 / f.shot.fps).y,
-                    None => bottom,
+                // The base moves with the cloud (only when the wind or the target moves it: same
+                // bits without): the bottom's centre carried, the height scaled.
+                let d = &prep.direction;
+                let t = k as f64 / f.shot.fps;
+                let (bottom, height) = match (&d.motion, d.wind) {
+                    (None, None) => (bottom, height),
+                    (None, Some(_)) => (bottom + d.drift(t).y, height),
+                    (Some(_), _) => {
+                        let c = prep.bounds.center();
+                        let foot = d.carry(t, glam::DVec3::new(c.x, bottom, c.z));
+                        (foot.y, height * d.target_motion(t).scale)
+                    }
                 };
                 BasePlane {
                     y: (bottom + b.height as f64 * height) as f32,
@@ -414,15 +425,90 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
         timeline,
         scene.file.seed,
     )
-    .map_err(|source| SceneError::Animate {
-        scene: scene.path.clone(),
-        source,
+    .map_err(|source| match source {
+        // A setting checked against the target (the diffusion's `start` and `order`): at its
+        // place in the scene file when the file can be read again.
+        animate::AnimateError::Invalid { field, message } => {
+            let e = SceneError::Invalid {
+                path: scene.path.clone(),
+                field,
+                message,
+            };
+            match std::fs::read_to_string(&scene.path) {
+                Ok(text) => e.located(&text),
+                Err(_) => e,
+            }
+        }
+        source => SceneError::Animate {
+            scene: scene.path.clone(),
+            source,
+        },
     })?;
+    let mut direction = animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone())
+        .with_motion(scene.file.transform.motion());
+    let mut bounds = bounds;
+    if let Some(seq) = &scene.deforming {
+        let deformation = deformation(scene, seq, &plan);
+        bounds = bounds.union(deformation.bounds(&plan.frame(timeline.frames - 1)));
+        direction.deform = Some(std::sync::Arc::new(deformation));
+    }
+    // A target that moves is framed over its whole path (its box carried to every frame).
+    let framing = match &direction.motion {
+        None => bounds,
+        Some(_) => (0..timeline.frames).fold(Aabb::EMPTY, |framing, k| {
+            let t = timeline.time(k);
+            (0..8).fold(framing, |framing, i| {
+                let corner = glam::DVec3::new(
+                    if i & 1 == 0 {
+                        bounds.min.x
+                    } else {
+                        bounds.max.x
+                    },
+                    if i & 2 == 0 {
+                        bounds.min.y
+                    } else {
+                        bounds.max.y
+                    },
+                    if i & 4 == 0 {
+                        bounds.min.z
+                    } else {
+                        bounds.max.z
+                    },
+                );
+                framing.grown(direction.carry(t, corner))
+            })
+        }),
+    };
     Ok(Prepared {
         model,
         bounds,
+        framing,
         origin,
-        direction: animate::Direction::new(&plan, scene.file.wind, scene.file.timing.clone()),
+        direction,
         plan,
     })
+}
+
+/// The deforming target's motion: the sequence placed by the scene's transform, its frames at
+/// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target.
+fn deformation(
+    scene: &Scene,
+    seq: &crate::mesh::sequence::MeshSequence,
+    plan: &Plan,
+) -> animate::Deformation {
+    let shot = &scene.file.shot;
+    let t = &scene.file.transform;
+    let frames: Vec<Vec<glam::DVec3>> = seq
+        .frames
+        .iter()
+        .map(|f| f.iter().map(|&p| t.apply_point(p)).collect())
+        .collect();
+    let first = if seq.from_shot_start {
+        0.0
+    } else {
+        shot.start_frame as f64
+    };
+    let times: Vec<f64> = seq.numbers.iter().map(|n| (n - first) / shot.fps).collect();
+    let formed = plan.frame(plan.timeline().frames - 1);
+    animate::Deformation::new(&formed, &frames, &times)
 }

@@ -56,9 +56,20 @@ impl StatsBasis {
     /// the plan.
     pub fn new(shot: &Shot) -> Result<StatsBasis, SceneError> {
         let prep = shot.prepared()?;
-        let lattice = Lattice::for_target(&prep.bounds, DEFAULT_CELL_FRACTION);
         let timeline = prep.plan.timeline();
-        let last = prep.plan.frame(timeline.frames.saturating_sub(1));
+        let last_k = timeline.frames.saturating_sub(1);
+        // A target that moves is measured on a lattice over its whole path, against its last
+        // frame where the keys put it (a still target: the plan's box and last frame, as ever).
+        let (lattice, last) = match prep.direction.motion {
+            None => (
+                Lattice::for_target(&prep.bounds, DEFAULT_CELL_FRACTION),
+                prep.plan.frame(last_k),
+            ),
+            Some(_) => (
+                Lattice::for_target(&prep.framing, DEFAULT_CELL_FRACTION),
+                prep.direction.frame(&prep.plan, last_k),
+            ),
+        };
         let threshold = prep.model.threshold;
         let final_voxels = visible_volume(&last, threshold, lattice).voxels;
         Ok(StatsBasis {

@@ -232,14 +232,20 @@ fn load(
             Ok((m, TargetOrigin::ModelFile(path)))
         }
         Target::Fit { mesh, .. } => {
+            // A deforming target is fitted on its rest frame (the sequence's first).
+            let rest = scene.deforming.as_deref().filter(|_| check);
             let cfg = fit_config(spec).unwrap_or_default();
-            let cache = fit_cache_file(mesh, &cfg, cache_dir)?;
+            let cache = fit_cache_file(&fit_identity(mesh, rest)?, &cfg, cache_dir);
             if cache.exists()
                 && let Ok(m) = crate::blobby::load_model(&cache)
             {
                 return Ok((m, TargetOrigin::Cached(cache)));
             }
-            let loaded = crate::mesh::load(mesh).map_err(|source| SceneError::Mesh {
+            let loaded = match rest {
+                Some(seq) => crate::mesh::prepare(seq.rest(), &seq.rest_name),
+                None => crate::mesh::load(mesh),
+            }
+            .map_err(|source| SceneError::Mesh {
                 scene: scene.path.clone(),
                 source,
             })?;
@@ -288,15 +294,27 @@ pub fn fit_config(spec: &Target) -> Option<FitConfig> {
     }
 }
 
-/// The cache file in `cache_dir` of the fit of `mesh` (a path or `builtin:NAME`) with `cfg`:
-/// `target-<key>.ron`, [`fit_cache_key`] of the mesh file's bytes (or the builtin's name).
-/// Fails when the mesh file cannot be read.
-pub fn fit_cache_file(
+/// The cache file in `cache_dir` of the scene's target fit, where [`load_target`] reads or
+/// writes it (`None` for a model target). Fails when the mesh file cannot be read.
+pub fn target_cache_file(scene: &Scene, cache_dir: &Path) -> Result<Option<PathBuf>, SceneError> {
+    let (Some(cfg), Target::Fit { mesh, .. }) =
+        (fit_config(&scene.file.target), &scene.file.target)
+    else {
+        return Ok(None);
+    };
+    let identity = fit_identity(mesh, scene.deforming.as_deref())?;
+    Ok(Some(fit_cache_file(&identity, &cfg, cache_dir)))
+}
+
+/// What a fit's cache key knows of its mesh: a deforming target's rest frame (`rest`), a mesh
+/// file's bytes, or a builtin's name. Fails when the mesh file cannot be read.
+fn fit_identity(
     mesh: &str,
-    cfg: &FitConfig,
-    cache_dir: &Path,
-) -> Result<PathBuf, SceneError> {
-    let identity: Vec<u8> = if mesh.starts_with("builtin:") {
+    rest: Option<&crate::mesh::sequence::MeshSequence>,
+) -> Result<Vec<u8>, SceneError> {
+    Ok(if let Some(seq) = rest {
+        seq.rest_identity()
+    } else if mesh.starts_with("builtin:") {
         mesh.as_bytes().to_vec()
     } else {
         crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(|source| {
@@ -305,9 +323,14 @@ pub fn fit_cache_file(
                 source,
             })
         })?
-    };
-    let hash = fit_cache_key(&identity, cfg);
-    Ok(cache_dir.join(format!("target-{hash:016x}.ron")))
+    })
+}
+
+/// The cache file in `cache_dir` of a fit with `cfg` of the mesh `identity` ([`fit_identity`]):
+/// `target-<key>.ron`, [`fit_cache_key`].
+fn fit_cache_file(identity: &[u8], cfg: &FitConfig, cache_dir: &Path) -> PathBuf {
+    let hash = fit_cache_key(identity, cfg);
+    cache_dir.join(format!("target-{hash:016x}.ron"))
 }
 
 /// The fitted-target cache key of a mesh (`identity`: its file's bytes or `builtin:` name)
