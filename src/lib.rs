@@ -33,6 +33,7 @@ pub mod rng;
 pub mod scene;
 pub mod spline;
 pub mod test_hook;
+pub mod view;
 
 /// The renderer's version ([`render::RENDER_VERSION`]).
 pub use render::RENDER_VERSION;

@@ -11,6 +11,7 @@ pub mod prepare;
 pub mod preview;
 pub mod render;
 pub mod usd;
+pub mod view;
 
 use clap::{Parser, Subcommand};
 
@@ -46,6 +47,8 @@ pub enum Command {
     Farm(farm::Args),
     /// Write a scene's shot as a USD stage: animated camera, sun, sky and the frame VDBs.
     Usd(usd::Args),
+    /// Serve a live look-development page for a scene on 127.0.0.1 (re-renders on save).
+    View(view::Args),
 }
 
 /// The `nephele` command: parse `args` (the program's name first), run the command, print the
@@ -79,6 +82,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Prepare(a) => prepare::run(a),
         Command::Farm(a) => farm::run(a),
         Command::Usd(a) => usd::run(a),
+        Command::View(a) => view::run(a),
     }
 }
 

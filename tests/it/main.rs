@@ -12,6 +12,7 @@ mod mesh_checks;
 mod readers_support;
 mod shared_models;
 mod temp_support;
+mod view_support;
 
 mod animate;
 mod bench;
@@ -41,3 +42,4 @@ mod story;
 mod surfaces;
 mod usd_camera;
 mod usd_holdouts;
+mod view;

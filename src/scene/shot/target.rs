@@ -259,38 +259,11 @@ fn load(
             let m = crate::blobby::load_model(&path).map_err(model_err)?;
             Ok((m, TargetOrigin::ModelFile(path)))
         }
-        Target::Fit {
-            mesh,
-            blobs,
-            candidates,
-            samples,
-            seed,
-        } => {
+        Target::Fit { mesh, .. } => {
             // A deforming target is fitted on its rest frame (the sequence's first).
             let rest = scene.deforming.as_deref().filter(|_| check);
-            let identity: Vec<u8> = if let Some(seq) = rest {
-                seq.rest_identity()
-            } else if mesh.starts_with("builtin:") {
-                mesh.as_bytes().to_vec()
-            } else {
-                crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(
-                    |source| {
-                        SceneError::File(FileError::Io {
-                            path: PathBuf::from(mesh),
-                            source,
-                        })
-                    },
-                )?
-            };
-            let cfg = FitConfig {
-                blobs: *blobs,
-                candidates: *candidates,
-                samples: *samples,
-                seed: *seed,
-                ..FitConfig::default()
-            };
-            let hash = fit_cache_key(&identity, &cfg);
-            let cache = cache_dir.join(format!("target-{hash:016x}.ron"));
+            let cfg = fit_config(spec).unwrap_or_default();
+            let cache = fit_cache_file(&fit_identity(mesh, rest)?, &cfg, cache_dir);
             if cache.exists()
                 && let Ok(m) = crate::blobby::load_model(&cache)
             {
@@ -325,6 +298,67 @@ fn load(
             Ok((out.model, TargetOrigin::Fitted(cache)))
         }
     }
+}
+
+/// The fit settings `spec` asks for (`None` for a model): the counts and seed it writes, the
+/// rest [`FitConfig::default`].
+pub fn fit_config(spec: &Target) -> Option<FitConfig> {
+    match spec {
+        Target::Model(_) => None,
+        Target::Fit {
+            blobs,
+            candidates,
+            samples,
+            seed,
+            ..
+        } => Some(FitConfig {
+            blobs: *blobs,
+            candidates: *candidates,
+            samples: *samples,
+            seed: *seed,
+            ..FitConfig::default()
+        }),
+    }
+}
+
+/// The cache file in `cache_dir` of the scene's target fit, where [`load_target`] reads or
+/// writes it (`None` for a model target). Fails when the mesh file cannot be read.
+pub fn target_cache_file(scene: &Scene, cache_dir: &Path) -> Result<Option<PathBuf>, SceneError> {
+    let Some(spec @ Target::Fit { mesh, .. }) = scene.file.target.as_ref() else {
+        return Ok(None);
+    };
+    let Some(cfg) = fit_config(spec) else {
+        return Ok(None);
+    };
+    let identity = fit_identity(mesh, scene.deforming.as_deref())?;
+    Ok(Some(fit_cache_file(&identity, &cfg, cache_dir)))
+}
+
+/// What a fit's cache key knows of its mesh: a deforming target's rest frame (`rest`), a mesh
+/// file's bytes, or a builtin's name. Fails when the mesh file cannot be read.
+fn fit_identity(
+    mesh: &str,
+    rest: Option<&crate::mesh::sequence::MeshSequence>,
+) -> Result<Vec<u8>, SceneError> {
+    Ok(if let Some(seq) = rest {
+        seq.rest_identity()
+    } else if mesh.starts_with("builtin:") {
+        mesh.as_bytes().to_vec()
+    } else {
+        crate::input::read(Path::new(mesh), crate::input::Limit::Mesh).map_err(|source| {
+            SceneError::File(FileError::Io {
+                path: PathBuf::from(mesh),
+                source,
+            })
+        })?
+    })
+}
+
+/// The cache file in `cache_dir` of a fit with `cfg` of the mesh `identity` ([`fit_identity`]):
+/// `target-<key>.ron`, [`fit_cache_key`].
+fn fit_cache_file(identity: &[u8], cfg: &FitConfig, cache_dir: &Path) -> PathBuf {
+    let hash = fit_cache_key(identity, cfg);
+    cache_dir.join(format!("target-{hash:016x}.ron"))
 }
 
 /// The fitted-target cache key of a mesh (`identity`: its file's bytes or `builtin:` name)
