@@ -12,8 +12,9 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
 use nephele::render::{
-    BlobMedium, Camera, CameraRays, CloudMaterial, Frame, FrameOptions, FrameRenderer, Frustum,
-    Ground, HoldoutMesh, Medium, Quality, RenderSettings, Sky, Sun, Surfaces,
+    BlobMedium, Camera, CameraRays, CloudMaterial, Film, Frame, FrameOptions, FrameRenderer,
+    Frustum, Ground, HoldoutMesh, IdMattes, Mattes, Medium, Quality, RenderSettings, Sky, Sun,
+    Surfaces,
 };
 use nephele::scene;
 
@@ -152,6 +153,124 @@ fn a_holdout_hides_the_cloud_behind_it_and_leaves_untouched_pixels_bit_identical
          the cloud), {edge} edge pixels partly covered"
     );
     assert!(untouched > 1500 && covered > 1500 && hidden > 100 && edge > 30);
+}
+
+/// The frame with ID mattes (two mattes, the blobs alternating between them).
+fn render_with_mattes(settings: &RenderSettings) -> Frame {
+    let film = Film {
+        mattes: Some(Mattes {
+            layer: "CryptoObject".into(),
+            names: vec!["even".into(), "odd".into()],
+            of_blob: (0..cloud().len() as u32).map(|i| i % 2).collect(),
+        }),
+        ..Film::default()
+    };
+    let options = FrameOptions {
+        film: &film,
+        ..FrameOptions::default()
+    };
+    FrameRenderer::render_once(settings, &cloud(), &options).0
+}
+
+/// Sum of a pixel's Cryptomatte coverages (the ranks that name a matte).
+fn coverage(mattes: &IdMattes, i: usize) -> f32 {
+    mattes.ranks[i]
+        .iter()
+        .filter(|r| mattes.named(**r).is_some())
+        .map(|r| r.coverage)
+        .sum()
+}
+
+/// Cryptomatte with holdouts: a holdout in front of the cloud zeroes the coverage of every
+/// pixel it hides, keeps the ranks of the pixels it does not touch bit for bit, and at its
+/// edges the ranks still sum to the pixel's alpha; a holdout through the cloud keeps the
+/// coverage of the cloud in front, summing to alpha, and the depth in front of it.
+#[test]
+fn cryptomatte_and_depth_stay_right_with_holdouts() {
+    let base = render_with_mattes(&settings(None));
+    let base_mattes = base.mattes.as_ref().expect("mattes");
+    // In front of the cloud, over the left half of the frame.
+    let (z, xs) = (3.5, (-10.0, 3.13));
+    let with = settings(Some(
+        Surfaces::new(1, vec![wall(z, xs.0, xs.1)], None, false).unwrap(),
+    ));
+    let held = render_with_mattes(&with);
+    let mattes = held.mattes.as_ref().expect("mattes");
+    let layer = held.holdout.as_ref().expect("a holdout layer");
+    let (mut hidden, mut edge, mut worst) = (0, 0, 0.0f32);
+    for y in 0..with.height {
+        for x in 0..with.width {
+            let i = (y * with.width + x) as usize;
+            // Every pixel: the coverages sum to alpha (a partly covered edge pixel included).
+            let e = (coverage(mattes, i) - held.alpha[i]).abs();
+            worst = worst.max(e);
+            assert!(
+                e <= 1e-5,
+                "pixel {x},{y}: coverage {} vs alpha {}",
+                coverage(mattes, i),
+                held.alpha[i]
+            );
+            match wall_hits(&with, (x, y), z as f32, (xs.0 as f32, xs.1 as f32)) {
+                0 => assert_eq!(mattes.ranks[i], base_mattes.ranks[i], "pixel {x},{y}"),
+                5 => {
+                    hidden += (coverage(base_mattes, i) > 0.5) as usize;
+                    assert!(
+                        mattes.ranks[i].iter().all(|r| mattes.named(*r).is_none()),
+                        "pixel {x},{y} behind the holdout: {:?}",
+                        mattes.ranks[i]
+                    );
+                }
+                _ => {
+                    if layer[i] > 0.0 && layer[i] < 1.0 && base.alpha[i] > 0.5 {
+                        edge += 1;
+                        // Part of the pixel is hidden: less of the cloud than without.
+                        assert!(
+                            coverage(mattes, i) < coverage(base_mattes, i),
+                            "pixel {x},{y}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{hidden} pixels of the cloud hidden (coverage 0), {edge} edge pixels over the cloud; |coverage − alpha| max {worst:.2e}"
+    );
+    assert!(hidden > 100 && edge >= 3, "{hidden} hidden, {edge} edge");
+
+    // Through the cloud's middle: the cloud in front keeps its coverage and its depth.
+    let with = settings(Some(
+        Surfaces::new(2, vec![wall(2.0, -10.0, 10.0)], None, false).unwrap(),
+    ));
+    let held = render_with_mattes(&with);
+    let mattes = held.mattes.as_ref().expect("mattes");
+    let cam = CameraRays::new(&with.camera, with.width, with.height);
+    let mut kept = 0;
+    for y in 0..with.height {
+        for x in 0..with.width {
+            let i = (y * with.width + x) as usize;
+            assert!(
+                (coverage(mattes, i) - held.alpha[i]).abs() <= 1e-5,
+                "pixel {x},{y}"
+            );
+            let r = cam.pixel_ray(x, y);
+            let wall_t = (2.0 - r.origin.z) / r.dir.z;
+            if held.alpha[i] > 0.0 {
+                kept += 1;
+                assert!(
+                    held.depth[i] <= wall_t + 1e-4,
+                    "pixel {x},{y}: depth past the holdout"
+                );
+            } else {
+                assert_eq!(
+                    held.depth[i],
+                    f32::INFINITY,
+                    "pixel {x},{y}: no cloud, no depth"
+                );
+            }
+        }
+    }
+    assert!(kept > 300, "{kept} pixels keep the cloud in front");
 }
 
 #[test]
