@@ -6,6 +6,21 @@
 
 use std::ops::{Add, Mul, Sub};
 
+/// Checks that key `i`'s time comes after key `i − 1`'s (the keys of a spline, a retime): the
+/// message names the key as `what i` (`"camera keyframe 3"`).
+pub fn check_increasing(what: &str, times: impl IntoIterator<Item = f64>) -> Result<(), String> {
+    let mut before: Option<f64> = None;
+    for (i, t) in times.into_iter().enumerate() {
+        if let Some(b) = before.filter(|&b| t <= b) {
+            return Err(format!(
+                "{what} {i}: times must increase, got {t} after {b}"
+            ));
+        }
+        before = Some(t);
+    }
+    Ok(())
+}
+
 /// The number type a value is scaled by (`f32` for the camera, `f64` for the transform).
 pub trait Scalar: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
     /// `v` in this type.

@@ -118,14 +118,8 @@ impl TryFrom<Vec<TimingKey>> for Timing {
                     k.progress
                 ));
             }
-            if i > 0 && k.time <= keys[i - 1].time {
-                return Err(format!(
-                    "timing key {i}: times must increase, got {} after {}",
-                    k.time,
-                    keys[i - 1].time
-                ));
-            }
         }
+        crate::spline::check_increasing("timing key", keys.iter().map(|k| k.time))?;
         Ok(Timing(keys))
     }
 }

@@ -119,14 +119,8 @@ pub fn check_keys(keys: &[PlacementKey]) -> Result<(), String> {
                 k.scale
             ));
         }
-        if i > 0 && k.time <= keys[i - 1].time {
-            return Err(format!(
-                "transform key {i}: times must increase, got {} after {}",
-                k.time,
-                keys[i - 1].time
-            ));
-        }
     }
+    crate::spline::check_increasing("transform key", keys.iter().map(|k| k.time))?;
     Ok(())
 }
 

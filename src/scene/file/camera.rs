@@ -221,14 +221,8 @@ impl TryFrom<Vec<CameraKey>> for CameraKeyframes {
                     "camera keyframe {i}: position and look_at must differ"
                 ));
             }
-            if i > 0 && k.time <= keys[i - 1].time {
-                return Err(format!(
-                    "camera keyframe {i}: times must increase, got {} after {}",
-                    k.time,
-                    keys[i - 1].time
-                ));
-            }
         }
+        crate::spline::check_increasing("camera keyframe", keys.iter().map(|k| k.time))?;
         Ok(CameraKeyframes(keys))
     }
 }
