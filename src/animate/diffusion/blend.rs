@@ -327,6 +327,51 @@ mod tests {
         }
     }
 
+    /// A volume that rises with `detail` and falls with `fitted`, dipping between the path's
+    /// knots (the underside start's failure): the held path never falls at a frame, lags the
+    /// path only where it must, and a path with no dip comes back unchanged.
+    #[test]
+    fn a_held_path_never_falls_at_a_frame() {
+        let path = BlendPath {
+            knots: vec![
+                BlendKnot {
+                    u: 0.0,
+                    detail: 0.0,
+                    fitted: 0.0,
+                },
+                BlendKnot {
+                    u: 0.5,
+                    detail: 0.5,
+                    fitted: 0.5,
+                },
+                BlendKnot {
+                    u: 1.0,
+                    detail: 1.0,
+                    fitted: 1.0,
+                },
+            ],
+        };
+        // Cells: detail adds 1000, fitted takes 1200 but only in its first half.
+        let volume = |_t: f64, d: f64, f: f64| (1000.0 + 1000.0 * d - 1200.0 * f.min(0.5)) as usize;
+        let frames: Vec<(f64, f64)> = (0..=20).map(|k| (k as f64, k as f64 / 20.0)).collect();
+        let held = path.held_at_frames(&frames, volume);
+        assert_ne!(held, path, "the path dips, so it is held");
+        let mut last = volume(0.0, 0.0, 0.0);
+        let mut lagged = 0;
+        for &(t, u) in &frames[1..frames.len() - 1] {
+            let (d, f) = held.at(u);
+            let v = volume(t, d, f);
+            assert!(v >= last, "frame {t} falls: {v} < {last}");
+            assert!(f <= path.at(u).1 + 1e-12);
+            lagged += usize::from(f < path.at(u).1);
+            last = v;
+        }
+        assert!(lagged > 0 && held.at(1.0) == (1.0, 1.0));
+        // Where fitted takes nothing, nothing is held.
+        let rising = |_t: f64, d: f64, _f: f64| (1000.0 * d) as usize;
+        assert_eq!(path.held_at_frames(&frames, rising), path);
+    }
+
     #[test]
     fn an_empty_path_is_the_identity() {
         assert_eq!(BlendPath::default().at(0.3), (0.3, 0.3));
