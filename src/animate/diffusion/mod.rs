@@ -36,8 +36,10 @@
 //!   (geometrically); the plan samples the visible volume over both on a 17 × 17 grid and
 //!   follows the path along which it never decreases (`blend.rs`), paced so that it rises
 //!   evenly: III grows into the space the early ellipsoids held before they withdraw from
-//!   it. `Progressive` starts III's blobs at evenly spaced times over it, each growing
-//!   over `grow_seconds`.
+//!   it. A steered plan (`start`, `order`) also checks the path at the shot's frames on the 1 %
+//!   lattice and holds I/II's progress back at a frame that would lose volume between the grid's
+//!   nodes (`blend.rs`, `held_at_frames`). `Progressive` starts III's blobs at evenly spaced
+//!   times over it, each growing over `grow_seconds`.
 //! - **Growth.** A new blob starts at the centre of its parent — the nearest blob placed
 //!   before it (nearest in that blob's ellipsoidal radius, so a long blob's far end counts as
 //!   near) — at zero size, and moves out while its semi-axes grow to full size (smoothstep);
