@@ -508,11 +508,14 @@ fn horse_diffusion_meets_the_bars_standing_upright() {
 }
 
 /// Issue 51, a steered diffusion: the duck's one-piece, smoothness and never-shrinking bars hold
-/// from a start at the beak and at the flank, and the first visible blob is the one nearest the
-/// start. One fit, shared by the shots. Not yet met (measured with `render --preview --stats`,
-/// so not asserted here): from the tail, frame 65 splits on screen (largest piece 0.939 of the
-/// coverage, one frame; 3D one piece); from the underside, frame 114 holds 0.025 % of the final
-/// volume less than frame 113 (in the blend).
+/// from a start at the beak, the flank, the underside and two more points of the box, and the
+/// first visible blob is the one nearest the start. One fit, shared by the shots. The underside
+/// start lost 0.025 % of the final volume at frame 114 (in the blend) before the steered blend
+/// was checked frame by frame (`BlendPath::held_at_frames`). Not yet met (measured with
+/// `render --preview --stats`, every frame rendered; so not asserted here): from the tail
+/// (−0.75, 0.1, 0) frame 65 splits on screen (largest piece 0.939 of the coverage, 0.952 at 66;
+/// 3D one piece), and from (−0.4, 0, −0.35) frame 72 (0.939), both while the fourth blob
+/// emerges from the body.
 #[test]
 fn duck_diffusion_meets_the_bars_from_any_start() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -522,6 +525,9 @@ fn duck_diffusion_meets_the_bars_from_any_start() {
     for (name, start) in [
         ("beak", DVec3::new(0.9, 0.44, 0.0)),
         ("flank", DVec3::new(-0.1, -0.1, 0.5)),
+        ("underside", DVec3::new(0.0, -0.45, 0.0)),
+        ("back", DVec3::new(0.3, 0.3, -0.3)),
+        ("breast", DVec3::new(0.5, -0.1, 0.3)),
     ] {
         let steered = text.replace(
             "hold_seconds: 0.5))",

@@ -18,6 +18,9 @@ pub(super) const GRID_STEPS: usize = 16;
 /// Share of the blend's time spent in proportion to path steps rather than to volume.
 const STEP_SHARE: f64 = 0.2;
 
+/// Bisections of a held frame's fitted progress ([`BlendPath::held_at_frames`]).
+const HOLD_BISECTIONS: usize = 6;
+
 /// One point of the blend path: at eased blend time `u`, the two progresses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct BlendKnot {
@@ -102,6 +105,73 @@ impl BlendPath {
                 .map(|&[u, detail, fitted]| BlendKnot { u, detail, fitted })
                 .collect(),
         })
+    }
+
+    /// This path checked at the shot's frames `(t, u)` (seconds, eased blend time; in time
+    /// order) against `volume(t, detail, fitted)`: a frame inside the blend whose volume would
+    /// fall below the frame before's keeps a lower fitted progress — halfway back to the frame
+    /// before's, else the frame before's — since I/II going to their fitted `B` is what takes
+    /// volume away. The path unchanged when no frame falls; otherwise knots at the frames.
+    pub fn held_at_frames(
+        &self,
+        frames: &[(f64, f64)],
+        volume: impl Fn(f64, f64, f64) -> usize,
+    ) -> BlendPath {
+        let mut knots = vec![BlendKnot {
+            u: 0.0,
+            detail: 0.0,
+            fitted: 0.0,
+        }];
+        let mut held = false;
+        // The last frame before the blend (its volume is counted when first needed), then the
+        // volume of the frame before.
+        let mut start = None;
+        let mut last: Option<usize> = None;
+        let mut last_fitted = 0.0;
+        for &(t, u) in frames {
+            if u >= 1.0 {
+                break;
+            }
+            if u <= 0.0 {
+                start = Some(t);
+                continue;
+            }
+            let (detail, fitted) = self.at(u);
+            let before = *last.get_or_insert_with(|| start.map_or(0, |t0| volume(t0, 0.0, 0.0)));
+            let mut pick = (fitted, volume(t, detail, fitted));
+            if pick.1 < before {
+                // The most fitted progress that keeps the volume (bisection between the frame
+                // before's and the path's), so the frame lags the path as little as it must.
+                let (mut lo, mut hi) = (last_fitted, fitted);
+                pick = (lo, volume(t, detail, lo));
+                for _ in 0..HOLD_BISECTIONS {
+                    let mid = 0.5 * (lo + hi);
+                    let v = volume(t, detail, mid);
+                    if v >= before {
+                        (lo, pick) = (mid, (mid, v));
+                    } else {
+                        hi = mid;
+                    }
+                }
+                held = true;
+            }
+            knots.push(BlendKnot {
+                u,
+                detail,
+                fitted: pick.0,
+            });
+            last = Some(pick.1);
+            last_fitted = pick.0;
+        }
+        if !held {
+            return self.clone();
+        }
+        knots.push(BlendKnot {
+            u: 1.0,
+            detail: 1.0,
+            fitted: 1.0,
+        });
+        BlendPath { knots }
     }
 
     /// `(detail, fitted)` at eased blend time `u` (clamped to `[0, 1]`).
@@ -255,6 +325,51 @@ mod tests {
             assert!(p.0 >= last.0 && p.1 >= last.1, "progress goes back at {k}");
             last = p;
         }
+    }
+
+    /// A volume that rises with `detail` and falls with `fitted`, dipping between the path's
+    /// knots (the underside start's failure): the held path never falls at a frame, lags the
+    /// path only where it must, and a path with no dip comes back unchanged.
+    #[test]
+    fn a_held_path_never_falls_at_a_frame() {
+        let path = BlendPath {
+            knots: vec![
+                BlendKnot {
+                    u: 0.0,
+                    detail: 0.0,
+                    fitted: 0.0,
+                },
+                BlendKnot {
+                    u: 0.5,
+                    detail: 0.5,
+                    fitted: 0.5,
+                },
+                BlendKnot {
+                    u: 1.0,
+                    detail: 1.0,
+                    fitted: 1.0,
+                },
+            ],
+        };
+        // Cells: detail adds 1000, fitted takes 1200 but only in its first half.
+        let volume = |_t: f64, d: f64, f: f64| (1000.0 + 1000.0 * d - 1200.0 * f.min(0.5)) as usize;
+        let frames: Vec<(f64, f64)> = (0..=20).map(|k| (k as f64, k as f64 / 20.0)).collect();
+        let held = path.held_at_frames(&frames, volume);
+        assert_ne!(held, path, "the path dips, so it is held");
+        let mut last = volume(0.0, 0.0, 0.0);
+        let mut lagged = 0;
+        for &(t, u) in &frames[1..frames.len() - 1] {
+            let (d, f) = held.at(u);
+            let v = volume(t, d, f);
+            assert!(v >= last, "frame {t} falls: {v} < {last}");
+            assert!(f <= path.at(u).1 + 1e-12);
+            lagged += usize::from(f < path.at(u).1);
+            last = v;
+        }
+        assert!(lagged > 0 && held.at(1.0) == (1.0, 1.0));
+        // Where fitted takes nothing, nothing is held.
+        let rising = |_t: f64, d: f64, _f: f64| (1000.0 * d) as usize;
+        assert_eq!(path.held_at_frames(&frames, rising), path);
     }
 
     #[test]
