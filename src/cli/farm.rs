@@ -60,6 +60,9 @@ pub struct Args {
     /// their common ancestor so every path is the same in the pods.
     #[arg(long, default_value = "nephele-shared")]
     pub volume_claim: String,
+    /// `--set KEY=VALUE` and `--size WxH`: checked here, and given to every task.
+    #[command(flatten)]
+    pub scene_args: super::common::SceneArgs,
 }
 
 /// Frames per task when `--chunk` is not given.
@@ -73,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     farm::check_sbatch_args(&args.sbatch_args)?;
-    let scene = scene::load_scene(&args.scene)?;
+    let scene = args.scene_args.load(&args.scene)?;
     let opts = RenderOptions {
         frames: args.frames.clone(),
         output: args.output.clone(),
@@ -158,6 +161,12 @@ fn farm_job(args: &Args, shot: &Shot, tasks: u32) -> anyhow::Result<FarmJob> {
         frames: shot.frames().to_vec(),
         tasks,
         preview: args.preview,
+        overrides: args
+            .scene_args
+            .overrides()
+            .iter()
+            .map(|o| format!("{}={}", o.key, o.value))
+            .collect(),
         logs: absolute(shot.dir())?.join("logs"),
         origins: origins(args, scene),
     })

@@ -86,6 +86,10 @@ pub struct FarmJob {
     pub tasks: u32,
     /// Render previews (`--preview`).
     pub preview: bool,
+    /// The command line's scene overrides, `KEY=VALUE` each (`--set`; `--size` as its two
+    /// `shot.width`/`shot.height`), given to every task in order so that the tasks render the
+    /// scene `nephele farm` checked.
+    pub overrides: Vec<String>,
     /// Folder of the tasks' logs (absolute; must exist before the jobs start).
     pub logs: PathBuf,
     /// Where the paths above came from.
@@ -135,6 +139,20 @@ impl FarmJob {
         )
     }
 
+    fn override_values(&self) -> impl Iterator<Item = Value> + '_ {
+        self.overrides.iter().flat_map(|o| {
+            [
+                Value::own("--set"),
+                Value::new(
+                    o.as_str(),
+                    "a --set override",
+                    "the command line's --set or --size",
+                    "write the override without such characters (a line break cannot be passed)",
+                ),
+            ]
+        })
+    }
+
     /// Check the job's outside values where they could break any job file (a line break, a path
     /// that is not UTF-8) before writing one: the output folder first, so that a refusal names
     /// the folder the user gave rather than the logs folder made from it.
@@ -145,7 +163,10 @@ impl FarmJob {
             self.nephele_value(),
             self.logs_value(),
         ];
-        for v in &values {
+        for v in values
+            .iter()
+            .chain(self.override_values().collect::<Vec<_>>().iter())
+        {
             checked(v, "into a job file")?;
         }
         Ok(())
@@ -163,6 +184,7 @@ impl FarmJob {
         if self.preview {
             v.push(Value::own("--preview"));
         }
+        v.extend(self.override_values());
         v
     }
 
@@ -182,6 +204,7 @@ impl FarmJob {
         if self.preview {
             v.push(Value::own("--preview"));
         }
+        v.extend(self.override_values());
         v
     }
 }

@@ -13,6 +13,7 @@ fn job() -> FarmJob {
         frames: (1..=96).collect(),
         tasks: 4,
         preview: true,
+        overrides: Vec::new(),
         logs: "/farm/renders/duck/preview/logs".into(),
         origins: Origins::default(),
     }
@@ -415,4 +416,34 @@ fn quoting_survives_quotes() {
     assert_eq!(pattern("/it's #1").unwrap(), "\"/it's #1\"");
     assert!(pattern("/a\\b").is_err());
     assert!(sbatch_quote("\"", false).is_err());
+}
+
+#[test]
+fn overrides_reach_every_task_word_for_word() {
+    let overrides = vec![
+        "shot.width=320".to_string(),
+        "camera=Fixed((position: (0.0, 0.5, 3.0), look_at: (0.0, 0.0, 0.0)))".to_string(),
+        "output.dir=\"it's $(touch X) `x`\"".to_string(),
+    ];
+    let with_sets = FarmJob {
+        overrides: overrides.clone(),
+        ..job()
+    };
+    for s in slurm_scripts(&with_sets) {
+        assert!(bash_parses(&s), "{s}");
+        let words = exec_words(&s);
+        let sets: Vec<&str> = words
+            .windows(2)
+            .filter(|w| w[0] == "--set")
+            .map(|w| w[1].as_str())
+            .collect();
+        assert_eq!(sets, overrides, "{s}");
+    }
+    // A line break cannot be carried into a job file: refused, naming the override.
+    let broken = FarmJob {
+        overrides: vec!["shot.width=3\n20".to_string()],
+        ..job()
+    };
+    let e = slurm_array_script(&broken, &[]).unwrap_err().to_string();
+    assert!(e.contains("--set"), "{e}");
 }
