@@ -91,7 +91,12 @@ def fit(
 @final
 class Scene:
     @staticmethod
-    def load(path: _Path) -> "Scene": ...
+    def load(
+        path: _Path, set: Sequence[str] = (), size: Optional[str] = None
+    ) -> "Scene":
+        """Read, parse and validate a scene file, with the CLI's overrides: ``size``
+        (``"1920x1080"``, as ``--size``) first, then each ``set`` (``"KEY=VALUE"``, as
+        ``--set``) in order."""
     @staticmethod
     def from_str(text: str, path: _Path = "scene.ron") -> "Scene": ...
     @staticmethod

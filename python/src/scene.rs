@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use nephele::scene::{self, RenderOptions, SceneFile};
+use nephele::scene::{self, Override, RenderOptions, SceneFile};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::Value;
@@ -14,6 +14,17 @@ use crate::args::selection;
 use crate::errors::{scene_err, scene_field_err};
 use crate::shot::Shot;
 
+/// The overrides of `Scene.load(set=..., size=...)`, parsed as the CLI parses them (a
+/// malformed one is the CLI's message) and in its order.
+fn overrides(set: &[String], size: Option<&str>) -> Result<Vec<Override>, String> {
+    let size = size.map(Override::size).transpose()?;
+    let set = set
+        .iter()
+        .map(|s| Override::set(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(scene::overrides::in_order(size.as_ref(), &set))
+}
+
 /// A loaded, validated scene.
 #[pyclass(module = "nephele", frozen)]
 pub(crate) struct Scene {
@@ -22,10 +33,20 @@ pub(crate) struct Scene {
 
 #[pymethods]
 impl Scene {
-    /// Read, parse and validate a scene file (RON).
+    /// Read, parse and validate a scene file (RON), with the CLI's overrides: `size`
+    /// (`"WxH"`, as `--size`) first, then each `set` (`"KEY=VALUE"`, as `--set`) in order.
     #[staticmethod]
-    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
-        let scene = py.detach(|| scene::load_scene(&path)).map_err(scene_err)?;
+    #[pyo3(signature = (path, set=Vec::new(), size=None))]
+    fn load(
+        py: Python<'_>,
+        path: PathBuf,
+        set: Vec<String>,
+        size: Option<String>,
+    ) -> PyResult<Scene> {
+        let overrides = overrides(&set, size.as_deref()).map_err(PyValueError::new_err)?;
+        let scene = py
+            .detach(|| scene::load_scene_with(&path, &overrides))
+            .map_err(scene_err)?;
         Ok(Scene { scene })
     }
 

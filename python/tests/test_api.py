@@ -81,6 +81,23 @@ def test_repository_scenes_load_and_round_trip_through_dicts():
         assert back.to_ron() == scene.to_ron(), path
 
 
+def test_load_takes_the_cli_overrides_in_its_order(tiny_scene):
+    plain = nephele.Scene.load(tiny_scene).to_dict()
+    d = nephele.Scene.load(
+        tiny_scene, set=["shot.width=64", "cloud.density=30"], size="32x18").to_dict()
+    # --size first, then each --set: the later width wins.
+    assert (d["shot"]["width"], d["shot"]["height"]) == (64, 18)
+    assert d["cloud"]["density"] == 30
+    assert plain["shot"]["width"] == 48
+    with pytest.raises(ValueError, match="--size 32by18"):
+        nephele.Scene.load(tiny_scene, size="32by18")
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        nephele.Scene.load(tiny_scene, set=["cloud.density"])
+    # A bad value is the scene's located error, naming the override.
+    with pytest.raises(nephele.SceneError, match="--set shot.width=-3"):
+        nephele.Scene.load(tiny_scene, set=["shot.width=-3"])
+
+
 def test_bad_scene_raises_the_cli_located_message(tmp_path, cli):
     bad = tmp_path / "bad.ron"
     bad.write_text('Scene(\n    target: Fit(mesh: "builtin:duck"),\n    shot: (widht: 64),\n)\n')

@@ -29,9 +29,7 @@ pub struct SceneArgs {
 impl SceneArgs {
     /// The overrides in the order they apply: `--size`, then each `--set`.
     pub fn overrides(&self) -> Vec<Override> {
-        let mut all: Vec<Override> = self.size.iter().flatten().cloned().collect();
-        all.extend(self.set.iter().cloned());
-        all
+        nephele::scene::overrides::in_order(self.size.as_ref(), &self.set)
     }
 
     /// The scene at `path` with these overrides.
@@ -201,6 +199,18 @@ impl Report {
             self.percent(),
             Some((seconds, skipped)),
         );
+    }
+
+    /// The command failed with `message`: a last `error` line for a machine reading
+    /// `--progress json` (the message is also on stderr, as always).
+    pub fn error(&self, message: &str) {
+        if !self.json {
+            return;
+        }
+        let line = serde_json::json!({ "stage": "error", "message": message });
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
     }
 
     fn percent(&self) -> f64 {

@@ -60,11 +60,29 @@ where
     T: Into<std::ffi::OsString> + Clone,
 {
     let cli = Cli::parse_from(args);
+    let report = cli.command.run_args().map(|r| r.report(0));
     match run(cli) {
         Ok(()) => 0,
         Err(e) => {
-            eprintln!("error: {}", error_message(&e));
+            let message = error_message(&e);
+            eprintln!("error: {message}");
+            // A farm manager reading `--progress json` learns why the task failed there too.
+            if let Some(report) = report {
+                report.error(&message);
+            }
             1
+        }
+    }
+}
+
+impl Command {
+    /// The shared run arguments (`-j`, `--progress`, `-q`, `-v`) of the commands that take them.
+    fn run_args(&self) -> Option<&common::RunArgs> {
+        match self {
+            Command::Render(a) => Some(&a.run_args),
+            Command::Preview(a) => Some(&a.run_args),
+            Command::Prepare(a) => Some(&a.run_args),
+            _ => None,
         }
     }
 }

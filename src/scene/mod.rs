@@ -24,7 +24,7 @@ pub use shot::{chunk, frames, run, stats, target, usd};
 use crate::file_error::FileError;
 use std::path::{Path, PathBuf};
 
-pub use file::overrides::Override;
+pub use file::overrides::{self, Override};
 pub use file::{
     AutoCamera, CameraSpec, FixedCamera, Format, OutputSpec, SceneFile, ShotSpec, Target,
 };

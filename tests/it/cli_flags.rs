@@ -250,4 +250,20 @@ fn progress_json_is_one_object_a_line_up_to_100_percent() {
         .map(|l| l["stage"].as_str().unwrap().to_string())
         .collect();
     assert_eq!(stages, ["prepare", "done"]);
+
+    // A failure: the last line says why, as stderr does, and the exit status is 1.
+    std::fs::write(tmp.join("bad.ron"), SCENE.replace("seed", "sede")).unwrap();
+    let out = nephele_in(&tmp)
+        .args(["render", "bad.ron", "-o", "out3", "--progress", "json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let stdout = String::from_utf8(out.stdout.clone()).unwrap();
+    let last: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(last["stage"], "error");
+    let message = last["message"].as_str().unwrap();
+    assert!(message.contains("bad.ron:"), "{message}");
+    let stderr = String::from_utf8(out.stderr.clone()).unwrap();
+    assert!(stderr.contains(message), "{stderr}");
+    assert!(!tmp.join("out3").exists());
 }

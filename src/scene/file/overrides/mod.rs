@@ -108,6 +108,14 @@ impl Override {
     }
 }
 
+/// The overrides in the order they apply: the size's two (`--size`) first, then each `--set`
+/// (a later one wins), for the CLI and the Python binding alike.
+pub fn in_order(size: Option<&[Override; 2]>, set: &[Override]) -> Vec<Override> {
+    let mut all: Vec<Override> = size.into_iter().flatten().cloned().collect();
+    all.extend(set.iter().cloned());
+    all
+}
+
 /// An image size `WIDTHxHEIGHT` in pixels (`1920x1080`), both positive.
 pub fn parse_size(arg: &str) -> Result<(u32, u32), String> {
     let bad = || format!("{arg:?} is not WIDTHxHEIGHT in pixels, e.g. 1920x1080");
