@@ -563,3 +563,66 @@ fn a_bend_that_stretches_is_followed_and_the_refit_measured() {
         -worst_gain
     );
 }
+
+/// A deforming target with a keyed transform: the keys win, as for a still target — on every
+/// frame the cloud is the unplaced target's cloud on that frame of the sequence, placed where
+/// the keys put the target at that time (`P(t)`), whatever the transform's own fields say.
+#[test]
+fn a_deforming_target_with_keys_is_placed_by_the_keys() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(repo.join("scenes/waving-tube.ron")).unwrap();
+    let dir = temp_dir("deform-keys");
+    let shot_of = |name: &str, transform: &str| {
+        let edited = text.replace(
+            "    seed: 5,\n",
+            &format!(
+                "    seed: 5,\n    timing: [(time: 0.0, progress: 1.0), (time: 10.0, progress: \
+                 1.0)],\n{transform}"
+            ),
+        );
+        assert_ne!(edited, text, "the scene was edited");
+        let path = dir.join(format!("{name}.ron"));
+        std::fs::write(&path, edited).unwrap();
+        let opts = RenderOptions {
+            // The fit is shared with the other tests of this file (one cache folder).
+            output: Some(std::env::temp_dir().join("nephele-deform-tube")),
+            preview: true,
+            ..RenderOptions::default()
+        };
+        let shot = Shot::open(load_scene(&path).unwrap(), &opts).unwrap();
+        shot.prepared().unwrap();
+        shot
+    };
+    let keyed = shot_of(
+        "keyed",
+        "    transform: (translate: (5.0, 0.0, 0.0), scale: 2.0, rotate_deg: (0.0, 40.0, 0.0), \
+         keys: [\n        (time: 0.0, translate: (1.0, 0.0, 0.0), rotate_deg: (0.0, 0.0, 10.0), \
+         scale: 1.2),\n        (time: 2.0, translate: (1.0, 1.5, -0.5), rotate_deg: (0.0, 30.0, \
+         -20.0), scale: 0.9),\n    ]),\n",
+    );
+    let plain = shot_of("plain", "");
+    let motion = keyed.scene().file.transform.motion().expect("keyed");
+    let prep = keyed.prepared().unwrap();
+    let diagonal = prep.bounds.diagonal();
+    let mut worst = 0.0f64;
+    for k in 0..keyed.total() {
+        let t = prep.plan.timeline().time(k as usize);
+        let mut want = plain.blobs(k).unwrap();
+        motion.placement(t).apply(&mut want);
+        let got = keyed.blobs(k).unwrap();
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            worst = worst.max((g.center - w.center).length() / diagonal);
+            assert!(
+                (g.semi_axes - w.semi_axes).abs().max_element() < 1e-6 * diagonal,
+                "frame {k}: semi-axes {} vs {}",
+                g.semi_axes,
+                w.semi_axes
+            );
+            assert!(g.rotation.dot(w.rotation).abs() > 1.0 - 1e-9, "frame {k}");
+            assert!((g.a - w.a).abs() < 1e-9 && (g.b - w.b).abs() < 1e-9);
+        }
+    }
+    println!("keyed deforming target: centres within {worst:.2e} of the diagonal of P(t)·cloud");
+    assert!(worst < 1e-6, "centres off by {worst} of the diagonal");
+}
