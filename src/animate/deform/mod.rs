@@ -22,14 +22,16 @@
 //! frames in world units — ride along with it instead of swimming through a still texture.
 //!
 //! Where the surface leaves what an affine map can follow (a bend across a blob, a bulge
-//! passing through it), the blob's `A` and `B` — the paper's local field's parameters — are
-//! re-solved against the deformed surface around it ([`refit`]), once per frame of the
-//! sequence when the shot is prepared; the shot then reads them, linear between frames like
-//! the vertices.
+//! passing through it), [`Deformation::with_refit`] re-solves the blob's `A` and `B` — the
+//! paper's local field's parameters — against the deformed surface around it ([`refit`]), once
+//! per frame of the sequence, read linear between frames like the vertices. Shots do not use
+//! it ([`Deformation::new`]): measured on the builtin waving tube and on a bend that stretches,
+//! it lost silhouette IoU (docs/MEASUREMENTS.md, "Bending"; `A`, `B` scale a blob's field alike
+//! in every direction, while a bend presses one side of it and pulls the other).
 //!
-//! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob, and a
-//! lerp of two factors per refitted blob (no solve, no search): tens of microseconds for a few
-//! hundred blobs.
+//! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob (and,
+//! with the refit, a lerp of two factors per blob; no solve, no search): tens of microseconds
+//! for a few hundred blobs.
 
 mod refit;
 

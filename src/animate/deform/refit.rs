@@ -21,9 +21,13 @@
 //! is kept as factors of the fitted `A`, `B` (so a blob still flying in or growing is scaled
 //! alike), per frame of the sequence, read linear between frames, so nothing pops.
 //!
-//! **Cost.** Once per frame of the sequence when the shot is prepared (in parallel over frames,
-//! each frame's solves in blob order: deterministic at any thread count); the shot's frame
-//! only reads two factors per refitted blob.
+//! **Cost.** Once per frame of the sequence when the deformation is made (in parallel over
+//! frames, each frame's solves in blob order: deterministic at any thread count); a frame then
+//! only reads two factors per blob.
+//!
+//! **Measured, not used by shots**: it lost silhouette IoU on the builtin waving tube and on a
+//! bend that stretches (docs/MEASUREMENTS.md, "Bending"), so `scene::shot` carries the blobs
+//! only; kept for the measurement (`tests/it/deform.rs`) and as the start of a shape refit.
 
 use glam::DVec3;
 use rayon::prelude::*;
