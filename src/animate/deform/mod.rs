@@ -33,7 +33,7 @@
 //! with the refit, a lerp of two factors per blob; no solve, no search): tens of microseconds
 //! for a few hundred blobs.
 
-mod refit;
+pub mod refit;
 
 pub use refit::{RefitConfig, RefitSummary};
 
