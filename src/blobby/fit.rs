@@ -209,18 +209,7 @@ pub fn optimise_faithful(
             rest.extend(range.clone().map(|k| {
                 sums[hood.sample[k] as usize] - blob_term(hood.rho2[k], blob.a, blob.b) - threshold
             }));
-            let clamp = |x: [f64; 2]| [x[0].clamp(cfg.a_min, cfg.a_max), x[1].abs()];
-            let sorted = SortedCost::new(q, &rest);
-            let cost = |x: [f64; 2]| {
-                let [a, b] = clamp(x);
-                sorted.eval(a, b)
-            };
-            let [a, b] = clamp(nelder_mead(
-                cost,
-                [blob.a, blob.b],
-                [0.25, 0.25 * blob.b.abs().max(0.1)],
-                cfg.max_evals,
-            ));
+            let [a, b] = solve_blob(cfg, q, &rest, [blob.a, blob.b]);
             blob.a = a;
             blob.b = b;
             for (j, k) in range.enumerate() {
@@ -230,6 +219,27 @@ pub fn optimise_faithful(
     }
     let after = objective(&BlobField::new(blobs, threshold), samples);
     (before, after)
+}
+
+/// One blob's faithful solve (paper §4.2): the `[A, B]` minimising `Σ_k (rest_k + f(q_k))²`
+/// by Nelder–Mead from `start`, where `q` are the squared ellipsoidal radii `ρ²` of the samples
+/// inside the blob's widest support (ascending), `rest` the rest of the field there
+/// (`Σ_{j≠i} f_j − t`), and `A` is held in `[a_min, a_max]`. The rule the fit applies to every
+/// blob and a deforming target's local refit ([`crate::animate::deform`]) to the blobs the
+/// surface leaves.
+pub fn solve_blob(cfg: &FaithfulConfig, q: &[f64], rest: &[f64], start: [f64; 2]) -> [f64; 2] {
+    let clamp = |x: [f64; 2]| [x[0].clamp(cfg.a_min, cfg.a_max), x[1].abs()];
+    let sorted = SortedCost::new(q, rest);
+    let cost = |x: [f64; 2]| {
+        let [a, b] = clamp(x);
+        sorted.eval(a, b)
+    };
+    clamp(nelder_mead(
+        cost,
+        start,
+        [0.25, 0.25 * start[1].abs().max(0.1)],
+        cfg.max_evals,
+    ))
 }
 
 /// Downhill simplex in two dimensions (Nelder & Mead 1965; standard coefficients 1, 2, ½, ½),

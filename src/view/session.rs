@@ -585,6 +585,8 @@ impl Session {
 
 /// The files `scene` reads, the scene file first: the target's and a morph's source mesh or
 /// model, the camera's file, the sky's map and the holdouts' meshes (`builtin:` ones are none).
+/// A target that is a mesh sequence (`walk_####.obj`) is watched as each of its frame files
+/// and their folder (a frame added, removed or renamed over changes the folder's stamp).
 pub fn referenced_files(scene: &Scene) -> Vec<PathBuf> {
     let f = &scene.file;
     let base = scene.path.parent().unwrap_or(Path::new(""));
@@ -607,7 +609,21 @@ pub fn referenced_files(scene: &Scene) -> Vec<PathBuf> {
         scene::Target::Fit { mesh, .. } => mesh.clone(),
     };
     if let Some(t) = &f.target {
-        add(&target(t), true);
+        let mesh = target(t);
+        if crate::mesh::sequence::is_pattern(&mesh) {
+            // A pattern names no file: its frames (as the loader found them) and its folder.
+            let pattern = base.join(&mesh);
+            if let Some(dir) = pattern.parent() {
+                add(&dir.to_string_lossy(), true);
+            }
+            for (_, file) in
+                crate::mesh::sequence::frame_files(&pattern.to_string_lossy()).unwrap_or_default()
+            {
+                add(&file.to_string_lossy(), true);
+            }
+        } else {
+            add(&mesh, true);
+        }
     }
     if let crate::animate::Animation::Morph(m) = &f.animation {
         add(&target(&m.from), true);

@@ -435,21 +435,18 @@ fn preview_cli_writes_frames_and_gif() {
 /// little, never far from the model (at most 5 % of the alpha lies beyond that band).
 #[test]
 fn final_frame_alpha_lies_inside_the_target_silhouette() {
-    use nephele::scene::{RenderOptions, Shot, Target};
+    use nephele::scene::{RenderOptions, Shot};
     let mut checked = 0;
-    for name in builtin_scenes::NAMES {
+    for name in builtin_scenes::NAMES
+        .into_iter()
+        .chain(builtin_scenes::DIRECTED)
+    {
         // Skips (said) only a scene on a shared model when ../shared/models is absent.
         let Some(scene) = builtin_scenes::load(name) else {
             continue;
         };
-        let Some(Target::Fit { mesh, .. }) = &scene.file.target else {
-            panic!("{name}: the check needs the mesh a scene fits");
-        };
-        let mut mesh = nephele::mesh::load(mesh).unwrap().mesh;
-        // The blobs are placed by the scene's target transform; so is the mesh.
-        for p in &mut mesh.positions {
-            *p = scene.file.transform.apply_point(*p);
-        }
+        let end = scene.file.shot.frame_count().saturating_sub(1) as f64 / scene.file.shot.fps;
+        let mesh = final_target_mesh(&scene, end);
         let mut scene = scene;
         (scene.file.shot.width, scene.file.shot.height) = (160, 90);
         let opts = RenderOptions {
@@ -481,9 +478,56 @@ fn final_frame_alpha_lies_inside_the_target_silhouette() {
         checked += 1;
     }
     assert!(
-        checked >= builtin_scenes::ON_BUILTIN_MESHES,
+        checked >= builtin_scenes::ON_BUILTIN_MESHES + builtin_scenes::DIRECTED.len(),
         "only {checked} of the builtin scenes were checked"
     );
+}
+
+/// The target mesh where the final frame (at `t` seconds) has it: the mesh the scene fits (a
+/// story's last target, placed by its own transform first), on its frame at `t` when it
+/// deforms, placed by the scene's transform — where its keys put it at `t` when keyed.
+fn final_target_mesh(scene: &nephele::scene::Scene, t: f64) -> nephele::mesh::Mesh {
+    use nephele::scene::Target;
+    let f = &scene.file;
+    let (target, entry) = match (&f.target, f.story.last()) {
+        (Some(target), _) => (target, None),
+        (None, Some(last)) => (&last.target, Some(&last.transform)),
+        (None, None) => panic!("{}: no target", scene.path.display()),
+    };
+    let Target::Fit { mesh, .. } = target else {
+        panic!(
+            "{}: the check needs the mesh a scene fits",
+            scene.path.display()
+        );
+    };
+    let mut mesh = match &scene.deforming {
+        Some(seq) => {
+            // The sequence's frame at `t` (its numbers count from the shot's first frame or
+            // are the shot's frame numbers).
+            let first = if seq.from_shot_start {
+                0.0
+            } else {
+                f.shot.start_frame as f64
+            };
+            let k = (0..seq.frames.len())
+                .min_by(|&a, &b| {
+                    let d = |i: usize| ((seq.numbers[i] - first) / f.shot.fps - t).abs();
+                    d(a).total_cmp(&d(b))
+                })
+                .unwrap();
+            seq.frame(k)
+        }
+        None => nephele::mesh::load(mesh).unwrap().mesh,
+    };
+    let keyed = f.transform.motion().map(|m| m.placement(t));
+    for p in &mut mesh.positions {
+        let q = entry.map_or(*p, |e| e.apply_point(*p));
+        *p = match &keyed {
+            Some(placement) => placement.apply_point(q),
+            None => f.transform.apply_point(q),
+        };
+    }
+    mesh
 }
 
 /// Pixels whose centre is within `dilate` pixels of the projected mesh.

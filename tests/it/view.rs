@@ -458,3 +458,46 @@ fn saving_a_file_the_scene_reads_renders_again() {
     assert_eq!(s["current"]["id"], 2);
     assert_eq!(view.get("/frame.png?g=2&f=4").1, after);
 }
+
+/// A target that is a mesh sequence is watched as its frame files (and their folder), not as
+/// its pattern, which names no file: an edit to one frame file reloads the scene.
+#[test]
+fn a_sequence_target_is_watched_frame_by_frame() {
+    let dir = temp_dir("view-sequence");
+    let seq = dir.join("seq");
+    std::fs::create_dir_all(&seq).unwrap();
+    let tetra = |z: f64| {
+        format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 {z}\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    };
+    for k in 1..=3 {
+        std::fs::write(
+            seq.join(format!("walk_{k:04}.obj")),
+            tetra(1.0 + 0.1 * k as f64),
+        )
+        .unwrap();
+    }
+    // A file beside that is not a frame is not watched.
+    std::fs::write(seq.join("walk_notes.txt"), "x").unwrap();
+    let path = dir.join("shot.ron");
+    std::fs::write(
+        &path,
+        "Scene(target: Fit(mesh: \"seq/walk_####.obj\", blobs: 8))\n",
+    )
+    .unwrap();
+    let scene = nephele::scene::load_scene(&path).unwrap();
+    assert!(scene.deforming.is_some());
+    let watched = nephele::view::session::referenced_files(&scene);
+    let mut want = vec![path.clone(), seq.clone()];
+    want.extend((1..=3).map(|k| seq.join(format!("walk_{k:04}.obj"))));
+    assert_eq!(watched, want);
+    // The watcher compares these files' stamps: editing one frame changes its stamp.
+    let stamp = |p: &Path| {
+        let m = std::fs::metadata(p).unwrap();
+        (m.modified().unwrap(), m.len())
+    };
+    let frame = seq.join("walk_0002.obj");
+    let before = stamp(&frame);
+    std::thread::sleep(Duration::from_millis(20));
+    std::fs::write(&frame, tetra(1.5) + "# edited\n").unwrap();
+    assert_ne!(stamp(&frame), before);
+}

@@ -471,7 +471,9 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
 }
 
 /// The deforming target's motion: the sequence placed by the scene's transform, its frames at
-/// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target.
+/// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target. The
+/// blobs are carried only: the local refit of `A`, `B` (`Deformation::with_refit`) was
+/// measured to lose silhouette IoU (docs/MEASUREMENTS.md, "Bending"), so a shot does not use it.
 fn deformation(
     scene: &Scene,
     seq: &crate::mesh::sequence::MeshSequence,

@@ -21,6 +21,14 @@ pub const NAMES: [&str; 6] = [
 /// How many of [`NAMES`] fit a `builtin:` mesh, so load wherever the repository is.
 pub const ON_BUILTIN_MESHES: usize = 4;
 
+/// The directed scenes (issue 51), all on `builtin:` meshes: a target that moves
+/// (`duck-drift`, keyed `transform`), one that bends (`waving-tube`, a mesh sequence) and a
+/// story of targets (`cumulus-duck-torus-knot`). Their final frames are walked by the look and
+/// silhouette checks with the target where the final frame has it (see
+/// `render::final_target_mesh`); [`NAMES`]' other walks (the picture sheets, the pinned
+/// frames) leave them to their own tests (`moving`, `deform`, `story`).
+pub const DIRECTED: [&str; 3] = ["duck-drift", "waving-tube", "cumulus-duck-torus-knot"];
+
 /// Path of builtin scene `name`.
 pub fn path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -20,11 +20,22 @@
 //! turns by `R` and each semi-axis is scaled by how much `M` stretches it, so a formed blob's
 //! ellipsoid is carried as the surface around it is, and the billows — anchored to the blobs'
 //! frames in world units — ride along with it instead of swimming through a still texture.
-//! The blobs' `A` and `B` are not refitted: the measured silhouette IoU of the builtin
-//! deforming shape stays above 0.8 on every frame without it (docs/MEASUREMENTS.md).
 //!
-//! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob
-//! (no refit, no search): tens of microseconds for a few hundred blobs.
+//! Where the surface leaves what an affine map can follow (a bend across a blob, a bulge
+//! passing through it), [`Deformation::with_refit`] re-solves the blob's `A` and `B` — the
+//! paper's local field's parameters — against the deformed surface around it ([`refit`]), once
+//! per frame of the sequence, read linear between frames like the vertices. Shots do not use
+//! it ([`Deformation::new`]): measured on the builtin waving tube and on a bend that stretches,
+//! it lost silhouette IoU (docs/MEASUREMENTS.md, "Bending"; `A`, `B` scale a blob's field alike
+//! in every direction, while a bend presses one side of it and pulls the other).
+//!
+//! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob (and,
+//! with the refit, a lerp of two factors per blob; no solve, no search): tens of microseconds
+//! for a few hundred blobs.
+
+pub mod refit;
+
+pub use refit::{RefitConfig, RefitSummary};
 
 use std::collections::HashMap;
 
@@ -108,6 +119,11 @@ pub struct Deformation {
     tracks: Vec<Vec<DVec3>>,
     anchors: Vec<Anchor>,
     blobs: Vec<Anchoring>,
+    /// Per frame of the sequence, per blob, the factors of its `A` and `B` from the local refit
+    /// (empty when no blob is refitted on any frame).
+    refit: Vec<Vec<[f64; 2]>>,
+    /// What the refit did.
+    summary: RefitSummary,
 }
 
 impl Deformation {
@@ -124,7 +140,7 @@ impl Deformation {
         let mut near = Vec::new();
         for b in formed {
             let sigma = b.semi_axes.max_element().max(grid.cell * 0.5);
-            grid.nearest(rest, b.center, ANCHOR_REACH * sigma, &mut near);
+            grid.nearest(rest, b.center, ANCHOR_REACH * sigma, MAX_ANCHORS, &mut near);
             let total: f64 = near
                 .iter()
                 .map(|&(d2, _)| (-d2 / (2.0 * sigma * sigma)).exp())
@@ -172,6 +188,62 @@ impl Deformation {
             tracks,
             anchors,
             blobs,
+            refit: Vec::new(),
+            summary: RefitSummary::default(),
+        }
+    }
+
+    /// [`Deformation::new`] with the local refit of `A`, `B` where the surface leaves the
+    /// blobs ([`refit`]; `cfg` says where and how), solved now on every frame of `frames`.
+    pub fn with_refit(
+        formed: &[Blob],
+        frames: &[Vec<DVec3>],
+        times: &[f64],
+        cfg: &RefitConfig,
+    ) -> Deformation {
+        let mut d = Deformation::new(formed, frames, times);
+        (d.refit, d.summary) = refit::factors(&d, formed, frames, cfg);
+        d
+    }
+
+    /// What the local refit did over the sequence.
+    pub fn refit_summary(&self) -> RefitSummary {
+        self.summary
+    }
+
+    /// This deformation with the blobs carried only, not refitted (to measure what the refit
+    /// changes).
+    pub fn carried_only(&self) -> Deformation {
+        Deformation {
+            refit: Vec::new(),
+            summary: RefitSummary::default(),
+            ..self.clone()
+        }
+    }
+
+    /// True when some blob's `A`, `B` are refitted on some frame.
+    pub fn is_refitted(&self) -> bool {
+        !self.refit.is_empty()
+    }
+
+    /// The factors of blob `i`'s `A` and `B` at shot time `t` from the local refit (`[1, 1]`
+    /// where it is not refitted).
+    pub fn refit_factors(&self, i: usize, t: f64) -> [f64; 2] {
+        let (a, b, u) = self.bracket(t);
+        self.factors_between(i, a, b, u)
+    }
+
+    fn factors_between(&self, i: usize, a: usize, b: usize, u: f64) -> [f64; 2] {
+        match (self.refit.get(a), self.refit.get(b)) {
+            (Some(fa), Some(fb)) if i < fa.len() => {
+                let (p, q) = (fa[i], fb[i]);
+                if p == q {
+                    p
+                } else {
+                    [p[0] + (q[0] - p[0]) * u, p[1] + (q[1] - p[1]) * u]
+                }
+            }
+            _ => [1.0, 1.0],
         }
     }
 
@@ -232,10 +304,14 @@ impl Deformation {
     /// weighted RMS distance, world units): how much the surface there leaves what the blob
     /// can follow (0 for a locally affine motion).
     pub fn residual(&self, i: usize, t: f64) -> f64 {
+        let (a, b, u) = self.bracket(t);
+        self.residual_between(i, a, b, u)
+    }
+
+    fn residual_between(&self, i: usize, a: usize, b: usize, u: f64) -> f64 {
         let Some(k) = self.blobs.get(i) else {
             return 0.0;
         };
-        let (a, b, u) = self.bracket(t);
         let map = self.map_between(i, a, b, u);
         let mean = k.rest_center + map.displacement - map.linear * (k.rest_center - k.rest_mean);
         let anchors = &self.anchors[k.start as usize..(k.start + k.len) as usize];
@@ -252,11 +328,17 @@ impl Deformation {
     }
 
     /// Carry `blobs` (a frame of the plan, index = identity) to shot time `t`: blob `i` by
-    /// its anchors' map ([`LocalMap::carry`]); blobs beyond the anchored ones stay.
+    /// its anchors' map ([`LocalMap::carry`]), its `A` and `B` scaled by the refit's factors
+    /// where it is refitted; blobs beyond the anchored ones stay.
     pub fn apply(&self, blobs: &mut [Blob], t: f64) {
         let (a, b, u) = self.bracket(t);
         for (i, blob) in blobs.iter_mut().enumerate().take(self.blobs.len()) {
             self.map_between(i, a, b, u).carry(blob);
+            if !self.refit.is_empty() {
+                let [ka, kb] = self.factors_between(i, a, b, u);
+                blob.a *= ka;
+                blob.b *= kb;
+            }
         }
     }
 
@@ -329,9 +411,16 @@ impl VertexGrid {
     }
 
     /// The points within `radius` of `c` (widened until at least [`MIN_ANCHORS`] or all), the
-    /// nearest [`MAX_ANCHORS`] kept, as `(squared distance, index)` sorted by distance then
-    /// index (deterministic).
-    fn nearest(&self, points: &[DVec3], c: DVec3, radius: f64, out: &mut Vec<(f64, u32)>) {
+    /// nearest `most` kept, as `(squared distance, index)` sorted by distance then index
+    /// (deterministic).
+    fn nearest(
+        &self,
+        points: &[DVec3],
+        c: DVec3,
+        radius: f64,
+        most: usize,
+        out: &mut Vec<(f64, u32)>,
+    ) {
         let mut r = radius.max(self.cell * 0.5);
         let total = points.len();
         loop {
@@ -367,7 +456,7 @@ impl VertexGrid {
             r *= 2.0;
         }
         out.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        out.truncate(MAX_ANCHORS);
+        out.truncate(most);
     }
 }
 
