@@ -19,6 +19,7 @@
 //! per ray, the RGB weight of each cell ([`SkyLight::ray_weights`]).
 
 use std::f32::consts::PI;
+use std::sync::Arc;
 
 use glam::{Vec3, Vec3A};
 
@@ -86,8 +87,9 @@ pub(crate) struct SkyLight {
     /// cells add up to when nothing is in the way.
     smooth: PrefilteredSky,
     /// The plate's skies: every cell's weight per view direction, the delta part included
-    /// ([`ViewWeights`]); `None` for the analytic skies.
-    view: Option<ViewWeights>,
+    /// ([`ViewWeights`], a map's kept across frames at intensity 1), and the scale to apply
+    /// (the map's intensity); `None` for the analytic skies.
+    view: Option<(Arc<ViewWeights>, f32)>,
 }
 
 impl SkyLight {
@@ -137,8 +139,14 @@ impl SkyLight {
                 (henyey_greenstein(mu, g) - (1.0 - f) * henyey_greenstein(mu, g_smooth)) / f
             }),
             smooth: PrefilteredSky::new(dome, smooth),
-            view: matches!(dome, SkyDome::Environment { .. } | SkyDome::Uniform { .. })
-                .then(|| ViewWeights::new(&cell_texels(dome, &dirs), g)),
+            view: match (dome, dome.environment()) {
+                (_, Some((env, k))) => Some((env.view_weights(g), k)),
+                (SkyDome::Uniform { .. } | SkyDome::Environment { .. }, None) => Some((
+                    Arc::new(ViewWeights::new(&cell_texels(dome, &dirs), g)),
+                    1.0,
+                )),
+                _ => None,
+            },
         }
     }
 
@@ -166,8 +174,8 @@ impl SkyLight {
     /// outside the cloud where the ray's own path runs through it). The analytic skies keep the
     /// ray's depth: their frames are pinned (a change of the render version).
     pub(crate) fn ray_weights(&self, dir: Vec3A) -> [Vec3A; SKY_DIRECTIONS] {
-        if let Some(view) = &self.view {
-            return view.lookup(dir);
+        if let Some((view, k)) = &self.view {
+            return view.lookup(dir).map(|w| w * *k);
         }
         // Light from cell direction ω travels along −ω and leaves toward the eye along −dir.
         let mut w = [Vec3A::ZERO; SKY_DIRECTIONS];
@@ -284,7 +292,7 @@ fn cell_texels(dome: &SkyDome, dirs: &[Vec3A; SKY_DIRECTIONS]) -> Vec<(Vec3A, Ve
 }
 
 /// Index of the direction in `dirs` closest to `d`.
-fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
+pub(crate) fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
     let mut best = (f32::NEG_INFINITY, 0);
     for (k, c) in dirs.iter().enumerate() {
         let dot = c.dot(d);
