@@ -12,9 +12,10 @@
 //! 7.6 % at 640×360 (docs/MEASUREMENTS.md, "The plate's light").
 //!
 //! In: the sky's texels (radiance, direction), the cell directions, the phase asymmetry. Out:
-//! [`ViewWeights::lookup`], bilinear between the table's view directions. Built once a frame
-//! (`VIEW_ROWS · VIEW_COLS` views times the texels: about 4 M phase evaluations, a few
-//! milliseconds on two cores), only for the plate's skies.
+//! [`ViewWeights::lookup`], bilinear between the table's view directions. `VIEW_ROWS ·
+//! VIEW_COLS` views times the texels is about 4 M phase evaluations (a few milliseconds on two
+//! cores): a map's table is built once a shot (kept with its integrals,
+//! `EnvIntegrals::view_weights`), a uniform sky's once a frame; the analytic skies have none.
 
 use std::f32::consts::PI;
 
