@@ -239,13 +239,14 @@ fn cryptomatte_and_depth_stay_right_with_holdouts() {
     assert!(hidden > 100 && edge >= 3, "{hidden} hidden, {edge} edge");
 
     // Through the cloud's middle: the cloud in front keeps its coverage and its depth.
+    let base = render_with_mattes(&settings(None));
     let with = settings(Some(
         Surfaces::new(2, vec![wall(2.0, -10.0, 10.0)], None, false).unwrap(),
     ));
     let held = render_with_mattes(&with);
     let mattes = held.mattes.as_ref().expect("mattes");
     let cam = CameraRays::new(&with.camera, with.width, with.height);
-    let mut kept = 0;
+    let (mut kept, mut farther) = (0, 0.0f32);
     for y in 0..with.height {
         for x in 0..with.width {
             let i = (y * with.width + x) as usize;
@@ -261,6 +262,18 @@ fn cryptomatte_and_depth_stay_right_with_holdouts() {
                     held.depth[i] <= wall_t + 1e-4,
                     "pixel {x},{y}: depth past the holdout"
                 );
+                // The same ray, its samples before the wall's step the same; only the step
+                // the wall cuts puts its sample elsewhere (at its jitter inside the shorter
+                // step), where the density may be higher: the opacity-weighted depth then
+                // moves back toward the wall by a fraction of that step, never more.
+                // Measured: at most 2.1e-4 of the depth (pixel 59,21: 0.12 mm in 4.9 m).
+                farther = farther.max(held.depth[i] / base.depth[i] - 1.0);
+                assert!(
+                    held.depth[i] <= base.depth[i] * (1.0 + 1e-3),
+                    "pixel {x},{y}: depth {} farther than without the holdout {}",
+                    held.depth[i],
+                    base.depth[i]
+                );
             } else {
                 assert_eq!(
                     held.depth[i],
@@ -270,6 +283,7 @@ fn cryptomatte_and_depth_stay_right_with_holdouts() {
             }
         }
     }
+    eprintln!("{kept} pixels keep the cloud in front; depth at most {farther:.1e} farther");
     assert!(kept > 300, "{kept} pixels keep the cloud in front");
 }
 

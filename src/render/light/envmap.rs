@@ -32,10 +32,11 @@ use std::f32::consts::PI;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions};
+use crate::render::light::sky_cells::{SKY_DIRECTIONS, directions, nearest};
+use crate::render::light::sky_view::{ViewWeights, table_dir};
 
 /// Widest map read (a 8192 × 4096 map is 400 MB of RGB floats); larger maps are refused with a
 /// request to scale them down.
@@ -70,7 +71,7 @@ impl PartialEq for EnvMap {
 }
 
 /// What the sky's shading needs of a map (at intensity 1), for one rotation.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub(crate) struct EnvIntegrals {
     /// Radiance × solid angle of each sky cell ([`directions`]: the directions nearest the cell's).
     pub cells: [Vec3; SKY_DIRECTIONS],
@@ -81,6 +82,36 @@ pub(crate) struct EnvIntegrals {
     pub upper_mean: Vec3,
     /// Mean radiance over the lower hemisphere.
     pub lower_mean: Vec3,
+    /// The cells' weights per view direction for the last phase asymmetry asked
+    /// ([`EnvIntegrals::view_weights`]).
+    view: Mutex<Option<(u32, Arc<ViewWeights>)>>,
+}
+
+impl EnvIntegrals {
+    /// The sky cells' weights per view direction for phase asymmetry `g` (at intensity 1;
+    /// computed on first use for a `g`, then kept: a shot's frames share them).
+    pub(crate) fn view_weights(&self, g: f32) -> Arc<ViewWeights> {
+        let key = g.to_bits();
+        let mut cached = self.view.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, v)) = cached.as_ref()
+            && *k == key
+        {
+            return Arc::clone(v);
+        }
+        let dirs = directions();
+        let texels: Vec<_> = self
+            .table
+            .iter()
+            .enumerate()
+            .map(|(k, l)| {
+                let d = table_dir(k / TABLE_COLS, k % TABLE_COLS, TABLE_ROWS, TABLE_COLS);
+                (d, Vec3A::from(*l), nearest(&dirs, d))
+            })
+            .collect();
+        let v = Arc::new(ViewWeights::new(&texels, g));
+        *cached = Some((key, Arc::clone(&v)));
+        v
+    }
 }
 
 /// Rows of [`EnvIntegrals::table`].
@@ -348,6 +379,7 @@ impl EnvMap {
             table,
             upper_mean: upper.0 / upper.1.max(1e-12),
             lower_mean: lower.0 / lower.1.max(1e-12),
+            view: Mutex::new(None),
         }
     }
 }

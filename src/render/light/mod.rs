@@ -15,6 +15,7 @@ pub(crate) mod shading;
 pub(crate) mod sky_cells;
 pub(crate) mod sky_depth;
 pub(crate) mod sky_dome;
+pub(crate) mod sky_view;
 pub(crate) mod sun_depth;
 
 use glam::Vec3A;

@@ -9,20 +9,24 @@
 //! sums to `L_sky(v)·τ·T` (`τ` the ray's optical depth through the cloud, `T = e^{−τ}`): the
 //! integrator adds it once per ray ([`SkyLight::forward_radiance`], through
 //! [`crate::render::light::shading::Shading::forward_sky`]). The plate's skies (`Uniform`,
-//! `Environment`) instead send the delta part through the cells around the ray's direction,
-//! shadowed by their depths at each sample ([`SkyLight::ray_weights`]): closer to Mitsuba at
-//! sky-lit rims, kept from the analytic skies so that their frames keep their bits.
+//! `Environment`) instead weight the cells by the whole phase function integrated over each
+//! cell's texels, per view direction ([`crate::render::light::sky_view`]): the forward peak's
+//! light is then shadowed by the depths of the cells it comes through at each sample — closer
+//! to Mitsuba at sky-lit rims and across the body; kept from the analytic skies so that their
+//! frames keep their bits.
 //!
 //! In: the [`SkyDome`] and the phase asymmetry. Out: per-frame cell directions and radiances;
 //! per ray, the RGB weight of each cell ([`SkyLight::ray_weights`]).
 
 use std::f32::consts::PI;
+use std::sync::Arc;
 
 use glam::{Vec3, Vec3A};
 
 use crate::render::light::envmap::{TABLE_COLS, TABLE_ROWS};
 use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, henyey_greenstein};
 use crate::render::light::sky_dome::SkyDome;
+use crate::render::light::sky_view::{ViewWeights, table_dir};
 
 /// Number of sky cells: the 26 directions from a cube's centre to its face centres, edge
 /// midpoints and corners (all of them at least 35° apart).
@@ -82,17 +86,11 @@ pub(crate) struct SkyLight {
     /// The sky seen through the smooth part of the phase function (normalised): what the
     /// cells add up to when nothing is in the way.
     smooth: PrefilteredSky,
-    /// The delta part's light arrives through the cells around the ray's direction (the
-    /// plate's skies, [`SkyLight::new`]) instead of along the ray itself.
-    forward_cells: bool,
+    /// The plate's skies: every cell's weight per view direction, the delta part included
+    /// ([`ViewWeights`], a map's kept across frames at intensity 1), and the scale to apply
+    /// (the map's intensity); `None` for the analytic skies.
+    view: Option<(Arc<ViewWeights>, f32)>,
 }
-
-/// The cells that carry the delta part's light for the plate's skies: those within
-/// `acos 0.7 ≈ 46°` of the ray's direction, weighted by `(μ − 0.7)²` (every direction has a cell
-/// within 35°). Against Mitsuba the same-grid error of the HDRI-lit duck went 13.0 % → 8.8 / 8.6
-/// / 8.4 % at 0.8 / 0.7 / 0.6 while the end-to-end frame grew brighter (mean 1.066 / 1.064 /
-/// 1.072): 0.7 between (docs/MEASUREMENTS.md, "The plate's light").
-const FORWARD_CELLS_COS: f32 = 0.7;
 
 impl SkyLight {
     /// Cells of `dome` for a cloud with phase asymmetry `g` (the two-lobe
@@ -141,7 +139,14 @@ impl SkyLight {
                 (henyey_greenstein(mu, g) - (1.0 - f) * henyey_greenstein(mu, g_smooth)) / f
             }),
             smooth: PrefilteredSky::new(dome, smooth),
-            forward_cells: matches!(dome, SkyDome::Environment { .. } | SkyDome::Uniform { .. }),
+            view: match (dome, dome.environment()) {
+                (_, Some((env, k))) => Some((env.view_weights(g), k)),
+                (SkyDome::Uniform { .. } | SkyDome::Environment { .. }, None) => Some((
+                    Arc::new(ViewWeights::new(&cell_texels(dome, &dirs), g)),
+                    1.0,
+                )),
+                _ => None,
+            },
         }
     }
 
@@ -150,7 +155,7 @@ impl SkyLight {
     /// whose delta part is in the cells' weights ([`SkyLight::ray_weights`]).
     #[inline]
     pub(crate) fn forward_radiance(&self, dir: Vec3A) -> Vec3A {
-        if self.forward_cells {
+        if self.view.is_some() {
             return Vec3A::ZERO;
         }
         self.forward.lookup(dir)
@@ -162,13 +167,16 @@ impl SkyLight {
     /// (prefiltered): an unshadowed sample receives exactly what the sky sends, and shadows
     /// only redistribute it by cell.
     ///
-    /// For the plate's skies (`Uniform`, `Environment`) the delta part is added to the cells
-    /// around `dir` ([`FORWARD_CELLS_COS`]): its light is shadowed by those cells' depths at
-    /// each sample, not by the ray's own depth. At a rim the forward lobe (about 15° wide)
-    /// brings light from outside the cloud where the ray's own path runs through it, and the
-    /// ray's depth made sky-lit rims up to 15 % too dark against Mitsuba. The analytic skies
-    /// keep the ray's depth: their frames are pinned (a change of the render version).
+    /// For the plate's skies (`Uniform`, `Environment`) the weights come from the per-view
+    /// table ([`ViewWeights`]), the whole phase function integrated over each cell's texels:
+    /// the forward peak's light is shadowed by the depths of the cells it comes through at each
+    /// sample, not by the ray's own depth (at a rim the peak, about 15° wide, brings light from
+    /// outside the cloud where the ray's own path runs through it). The analytic skies keep the
+    /// ray's depth: their frames are pinned (a change of the render version).
     pub(crate) fn ray_weights(&self, dir: Vec3A) -> [Vec3A; SKY_DIRECTIONS] {
+        if let Some((view, k)) = &self.view {
+            return view.lookup(dir).map(|w| w * *k);
+        }
         // Light from cell direction ω travels along −ω and leaves toward the eye along −dir.
         let mut w = [Vec3A::ZERO; SKY_DIRECTIONS];
         let mut total = Vec3A::ZERO;
@@ -183,24 +191,6 @@ impl SkyLight {
         let scale = target / total.max(Vec3A::splat(1e-12));
         for wk in &mut w {
             *wk *= scale;
-        }
-        if self.forward_cells {
-            let mut k = [0.0f32; SKY_DIRECTIONS];
-            let mut ks = 0.0;
-            for (kj, d) in k.iter_mut().zip(&self.dirs) {
-                let c = (d.dot(dir) - FORWARD_CELLS_COS).max(0.0);
-                *kj = c * c;
-                ks += *kj;
-            }
-            let fwd = self.forward.lookup(dir) * self.delta;
-            if ks > 0.0 {
-                for (wk, kj) in w.iter_mut().zip(k) {
-                    *wk += fwd * (kj / ks);
-                }
-            } else {
-                // Not reached: some cell is always within 35°.
-                w[nearest(&self.dirs, dir)] += fwd;
-            }
         }
         w
     }
@@ -284,8 +274,25 @@ impl PrefilteredSky {
     }
 }
 
+/// The sky on the equal-solid-angle table `TABLE_ROWS × TABLE_COLS` ([`table_dir`]): per
+/// texel its direction, its radiance (a map's mean over the texel, so that a sunny map's sun is
+/// not missed between point samples) and the index of its cell in `dirs`.
+fn cell_texels(dome: &SkyDome, dirs: &[Vec3A; SKY_DIRECTIONS]) -> Vec<(Vec3A, Vec3A, usize)> {
+    let env = dome.environment();
+    (0..TABLE_ROWS * TABLE_COLS)
+        .map(|k| {
+            let d = table_dir(k / TABLE_COLS, k % TABLE_COLS, TABLE_ROWS, TABLE_COLS);
+            let l = match &env {
+                Some((env, scale)) => env.table[k] * *scale,
+                None => dome.radiance(d.into()),
+            };
+            (d, Vec3A::from(l), nearest(dirs, d))
+        })
+        .collect()
+}
+
 /// Index of the direction in `dirs` closest to `d`.
-fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
+pub(crate) fn nearest(dirs: &[Vec3A; SKY_DIRECTIONS], d: Vec3A) -> usize {
     let mut best = (f32::NEG_INFINITY, 0);
     for (k, c) in dirs.iter().enumerate() {
         let dot = c.dot(d);

@@ -136,12 +136,46 @@ impl Medium for DenseGrid {
 pub struct ExactLights<'a> {
     grid: &'a DenseGrid,
     sun_dir: Vec3A,
+    /// With [`ExactLights::cell_mean`]: per sky cell, directions spread over its solid angle.
+    cells: Option<Vec<Vec<Vec3A>>>,
 }
 
 impl<'a> ExactLights<'a> {
     /// Depths through `grid` for sunlight travelling along `sun_dir`.
     pub fn new(grid: &'a DenseGrid, sun_dir: Vec3A) -> ExactLights<'a> {
-        ExactLights { grid, sun_dir }
+        ExactLights {
+            grid,
+            sun_dir,
+            cells: None,
+        }
+    }
+
+    /// [`ExactLights::new`], each sky cell's depth the one whose transmittance is the mean
+    /// transmittance over the cell's solid angle (`per_cell` directions on average, a Fibonacci
+    /// sphere binned to the nearest cell): what the cell's one direction stands for.
+    pub fn cell_mean(grid: &'a DenseGrid, sun_dir: Vec3A, per_cell: usize) -> ExactLights<'a> {
+        let dirs = nephele::render::sky_directions();
+        let n = per_cell * dirs.len();
+        let mut cells = vec![Vec::new(); dirs.len()];
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        for i in 0..n {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - y * y).max(0.0).sqrt();
+            let d = Vec3A::new(
+                r * (golden * i as f32).cos(),
+                y,
+                r * (golden * i as f32).sin(),
+            );
+            let k = (0..dirs.len())
+                .max_by(|&a, &b| dirs[a].dot(d).total_cmp(&dirs[b].dot(d)))
+                .unwrap();
+            cells[k].push(d);
+        }
+        ExactLights {
+            grid,
+            sun_dir,
+            cells: Some(cells),
+        }
     }
 }
 
@@ -151,7 +185,17 @@ impl ShadowDepths for ExactLights<'_> {
         let sun = self.grid.depth(x, -self.sun_dir);
         LightDepths {
             sun,
-            sky: std::array::from_fn(|k| self.grid.depth(x, dirs[k])),
+            sky: std::array::from_fn(|k| match &self.cells {
+                None => self.grid.depth(x, dirs[k]),
+                Some(cells) => {
+                    let t: f32 = cells[k]
+                        .iter()
+                        .map(|&d| (-self.grid.depth(x, d)).exp())
+                        .sum::<f32>()
+                        / cells[k].len() as f32;
+                    -t.max(1e-30).ln()
+                }
+            }),
         }
     }
 }
