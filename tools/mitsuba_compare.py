@@ -31,7 +31,9 @@ Output (stdout, JSON):
   ref_rel_rmse      (with nephele_ref*) nephele's Reference against Mitsuba's full transport,
                     per pixel, both renderers' noise excluded; ref_rel_rmse_raw noise included;
                     ref_noise, ref_mitsuba_noise: each one's relative noise (of its two-seed
-                    mean); ref_mean_ratio; ref_same_grid_*: the same through grid.vol
+                    mean); ref_mean_ratio; ref_same_grid_*: the same through grid.vol (a
+                    Reference of max_depth 2, reference.json, is compared with Mitsuba's
+                    single scattering instead)
   seconds_*         render times (nephele's from meta.json)
 With --picture PATH: a 2×2 sheet (nephele SS | Mitsuba SS / nephele MS | Mitsuba full).
 
@@ -208,6 +210,7 @@ def reference_comparison(d, shape, full, cloud):
     if os.path.exists(meta_path):
         meta = json.load(open(meta_path))
         out["ref_spp"] = meta["spp"]
+        out["ref_max_depth"] = meta.get("max_depth", 64)
         out["seconds_nephele_ref"] = meta["seconds"]
         out["ref_evaluations_per_path"] = round(meta["evaluations"] / meta["paths"], 1)
     for key, stem in (("ref", "nephele_ref"), ("ref_same_grid", "nephele_grid_ref")):
@@ -314,8 +317,11 @@ def main():
         l = lum(v)
         out[f"mean_lum_{k}"] = round(float(l[opaque].mean()), 4)
         out[f"base_top_{k}"] = round(base_top(l, opaque), 4)
-    if "full" in ref:
-        out.update(reference_comparison(args.dir, (h, w, 4), ref["full"], cloud))
+    ref_meta = os.path.join(args.dir, "reference.json")
+    depth = json.load(open(ref_meta)).get("max_depth", 64) if os.path.exists(ref_meta) else 64
+    against = "ss" if depth == 2 else "full"
+    if against in ref:
+        out.update(reference_comparison(args.dir, (h, w, 4), ref[against], cloud))
     print(json.dumps(out, indent=1))
 
     if args.picture and "full" in ref:

@@ -23,7 +23,8 @@
 //! (through the exported grid; a minute): what the light grid's resolution costs.
 //! `NEPHELE_MITSUBA_REFERENCE=spp` also renders nephele's `quality: Reference` (its path
 //! tracer, max depth 64, two path seeds) through the blobs and through the exported grid, and
-//! the script compares it with Mitsuba's full transport (`ref_*` keys).
+//! the script compares it with Mitsuba's full transport (`ref_*` keys; with
+//! `NEPHELE_MITSUBA_REFERENCE_DEPTH=2`, single scattering against Mitsuba's `max_depth` 2).
 //!
 //! The plate's light (`environment_single_scattering_matches_mitsuba`, always run): a test EXR
 //! as the sky, the same file for Mitsuba's `envmap`. `NEPHELE_MITSUBA_ENV_SIZE=640` runs it at
@@ -319,11 +320,16 @@ fn write_reference(
     let mut s = s.clone();
     s.cloud.multiple_scattering = true;
     let medium = BlobMedium::new(&s, blobs);
-    let mut record = String::from("{");
+    // NEPHELE_MITSUBA_REFERENCE_DEPTH=2: single scattering, against Mitsuba's `max_depth` 2.
+    let max_depth = std::env::var("NEPHELE_MITSUBA_REFERENCE_DEPTH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    let mut record = format!(r#"{{"max_depth": {max_depth}, "#);
     for (name, seed) in [("ref", 0), ("ref2", 1)] {
         s.quality.reference = Some(PathTracing {
             samples: spp,
-            max_depth: 64,
+            max_depth,
             seed,
         });
         let start = Instant::now();

@@ -145,7 +145,8 @@ mod tests {
     /// A conservative ball lit by a uniform sky, albedo 1, no sun, unbounded depth: in
     /// equilibrium every ray sees the sky's radiance `L` whatever the ball does, so the cloud's
     /// light is `(1 − T)·L = alpha·L` in every pixel. Checks the tracking, the sky's next-event
-    /// estimation, its MIS with the phase sample and the roulette together.
+    /// estimation, its MIS with the phase sample and the roulette together (measured 1.0006
+    /// at 1,024 paths a pixel; 0.991 at 64).
     #[test]
     fn conservative_ball_in_a_uniform_sky_is_invisible() {
         let mut s = settings(32, 18, Quality::preset(QualityPreset::Reference));
@@ -154,7 +155,7 @@ mod tests {
         s.sun.intensity = 0.0;
         s.cloud.albedo = 1.0;
         s.quality.reference = Some(PathTracing {
-            samples: 64,
+            samples: 1024,
             max_depth: 100_000,
             seed: 0,
         });
@@ -174,7 +175,7 @@ mod tests {
         }
         let ratio = rgb / expected;
         assert!(
-            (ratio - Vec3::ONE).abs().max_element() < 0.02,
+            (ratio - Vec3::ONE).abs().max_element() < 0.005,
             "cloud light over alpha·L: {ratio}"
         );
         assert!(
