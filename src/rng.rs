@@ -25,6 +25,8 @@ pub enum Stream {
     Eval = 7,
     /// Motion-blur time samples (per pixel and frame).
     Shutter = 8,
+    /// The reference path tracer's paths (per frame, pixel and sample).
+    Path = 9,
 }
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash.

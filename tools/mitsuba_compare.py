@@ -11,6 +11,10 @@ Input: a folder written by `tests/it/mitsuba.rs` (see its module doc):
   nephele_ms.f32  the same with nephele's multiple-scattering approximation
   nephele_grid_ss.f32  (optional) nephele's single scattering of grid.vol itself: the light
                   transport alone, without the grid's discretisation of the density
+  nephele_ref.f32, nephele_ref2.f32  (optional, NEPHELE_MITSUBA_REFERENCE) nephele's
+                  `quality: Reference` (its path tracer, full transport) at two path seeds,
+                  through the blobs; nephele_grid_ref*.f32 the same through grid.vol;
+                  reference.json its spp, seconds and work
 
 Mitsuba renders the same camera, sun (directional, same irradiance) and sky (envmap) with
 `volpath`: `max_depth` 2 (single scattering) and 64 (full transport), each twice with
@@ -24,6 +28,12 @@ Output (stdout, JSON):
   mean_lum_*        mean ACES luminance of the cloud (alpha > 0.5) for nephele SS / MS and
                     Mitsuba SS / full transport
   base_top_*        mean luminance of the cloud's lowest quarter of rows over its top quarter
+  ref_rel_rmse      (with nephele_ref*) nephele's Reference against Mitsuba's full transport,
+                    per pixel, both renderers' noise excluded; ref_rel_rmse_raw noise included;
+                    ref_noise, ref_mitsuba_noise: each one's relative noise (of its two-seed
+                    mean); ref_mean_ratio; ref_same_grid_*: the same through grid.vol (a
+                    Reference of max_depth 2, reference.json, is compared with Mitsuba's
+                    single scattering instead)
   seconds_*         render times (nephele's from meta.json)
 With --picture PATH: a 2×2 sheet (nephele SS | Mitsuba SS / nephele MS | Mitsuba full).
 
@@ -186,6 +196,39 @@ def base_top(l, mask):
     return float(l[bmask].mean() / l[tmask].mean())
 
 
+def reference_comparison(d, shape, full, cloud):
+    """Nephele's `quality: Reference` (two path seeds) against Mitsuba's full transport (two
+    seeds), linear luminance over the cloud's pixels: the relative RMSE with both renderers'
+    noise excluded (each the variance of its two-seed mean, `((a − b)/2)²`), raw, each noise,
+    the mean ratio; through the blobs (`ref_*`) and through grid.vol (`ref_same_grid_*`)."""
+    out = {}
+    ma, mb = (lum(x)[cloud] for x in full)
+    m = 0.5 * (ma + mb)
+    m_noise = float(np.mean((ma - mb) ** 2)) / 4.0
+    scale = float(m.mean())
+    meta_path = os.path.join(d, "reference.json")
+    if os.path.exists(meta_path):
+        meta = json.load(open(meta_path))
+        out["ref_spp"] = meta["spp"]
+        out["ref_max_depth"] = meta.get("max_depth", 64)
+        out["seconds_nephele_ref"] = meta["seconds"]
+        out["ref_evaluations_per_path"] = round(meta["evaluations"] / meta["paths"], 1)
+    for key, stem in (("ref", "nephele_ref"), ("ref_same_grid", "nephele_grid_ref")):
+        a_path, b_path = (os.path.join(d, f"{stem}{s}.f32") for s in ("", "2"))
+        if not (os.path.exists(a_path) and os.path.exists(b_path)):
+            continue
+        na, nb = (lum(load(d, os.path.basename(p), shape)[..., :3])[cloud] for p in (a_path, b_path))
+        n = 0.5 * (na + nb)
+        n_noise = float(np.mean((na - nb) ** 2)) / 4.0
+        mse = float(np.mean((n - m) ** 2))
+        out[f"{key}_rel_rmse"] = round(np.sqrt(max(mse - n_noise - m_noise, 0.0)) / scale, 4)
+        out[f"{key}_rel_rmse_raw"] = round(np.sqrt(mse) / scale, 4)
+        out[f"{key}_noise"] = round(np.sqrt(n_noise) / scale, 4)
+        out[f"{key}_mean_ratio"] = round(float(n.mean()) / scale, 4)
+    out["ref_mitsuba_noise"] = round(np.sqrt(m_noise) / scale, 4)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dir")
@@ -274,6 +317,11 @@ def main():
         l = lum(v)
         out[f"mean_lum_{k}"] = round(float(l[opaque].mean()), 4)
         out[f"base_top_{k}"] = round(base_top(l, opaque), 4)
+    ref_meta = os.path.join(args.dir, "reference.json")
+    depth = json.load(open(ref_meta)).get("max_depth", 64) if os.path.exists(ref_meta) else 64
+    against = "ss" if depth == 2 else "full"
+    if against in ref:
+        out.update(reference_comparison(args.dir, (h, w, 4), ref[against], cloud))
     print(json.dumps(out, indent=1))
 
     if args.picture and "full" in ref:

@@ -105,11 +105,12 @@ pub use output::film::{Film, Region};
 pub use camera::{Camera, CameraRays};
 pub use frame::{Frame, Passes};
 pub use settings::{
-    BasePlane, CloudMaterial, CumulusBase, Environment, InvalidField, NoiseSettings, Quality,
-    QualityPreset, RenderSettings, Sky, Sun,
+    BasePlane, CloudMaterial, CumulusBase, Environment, InvalidField, NoiseSettings, PathTracing,
+    Quality, QualityPreset, RenderSettings, Sky, Sun,
 };
 // The integrator on media of one's own, and what it asks of them:
 pub use camera::{Frustum, Ray};
+pub use integrator::reference::{PathStats, render_path_traced};
 pub use integrator::{CloudVelocity, MotionSource, render_medium, render_medium_unshaded};
 pub use light::envmap::EnvMap;
 pub use light::grid::LightGrid;

@@ -34,6 +34,7 @@ mod mitsuba;
 mod moving;
 mod polygonize;
 mod readme_defaults;
+mod reference;
 mod render;
 mod robustness;
 mod scene;

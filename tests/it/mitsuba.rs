@@ -22,6 +22,10 @@
 //! averages each sky cell's transmittance over N directions across it),
 //! `NEPHELE_MITSUBA_EXACT_SUN` the end-to-end single-scattering image's depth toward the sun
 //! (through the exported grid; a minute): what the light grid's resolution costs.
+//! `NEPHELE_MITSUBA_REFERENCE=spp` also renders nephele's `quality: Reference` (its path
+//! tracer, max depth 64, two path seeds) through the blobs and through the exported grid, and
+//! the script compares it with Mitsuba's full transport (`ref_*` keys; with
+//! `NEPHELE_MITSUBA_REFERENCE_DEPTH=2`, single scattering against Mitsuba's `max_depth` 2).
 //!
 //! The plate's light (`environment_single_scattering_matches_mitsuba`, always run): a test EXR
 //! as the sky, the same file for Mitsuba's `envmap`. `NEPHELE_MITSUBA_ENV_SIZE=640` runs it at
@@ -43,7 +47,10 @@ use std::time::Instant;
 
 use nephele::render::CameraRays;
 use nephele::render::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
-use nephele::render::{BlobMedium, Film, LightGrid, RenderSettings, SkyDome, render_medium};
+use nephele::render::{
+    BlobMedium, Film, LightGrid, PathTracing, RenderSettings, SkyDome, render_medium,
+    render_path_traced,
+};
 use nephele::scene::{RenderOptions, Shot, load_scene};
 
 /// The Python interpreter with mitsuba and numpy: `$NEPHELE_PYTHON`, the venv `.ci/run` makes
@@ -260,6 +267,12 @@ fn write_inputs_with(
         render_medium(&s, &dense, &lights, &Film::default())
     };
     write_f32(&dir.join("nephele_grid_ss.f32"), composite(&s, &same_grid));
+    if let Some(spp) = std::env::var("NEPHELE_MITSUBA_REFERENCE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        write_reference(&s, &blobs, &dense, spp, dir);
+    }
     // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map
     // bilinearly, and a 256-row map blurred the horizon over ±7 pixels at 640×360 — behind the
     // cloud's lower fringe that was 1.0 point of the backlit shot's 6.1 % (the blur is the
@@ -307,6 +320,54 @@ fn write_inputs_with(
     );
     std::fs::write(dir.join("meta.json"), meta).unwrap();
     (times[0], times[1])
+}
+
+/// Nephele's `quality: Reference` of the frame (the path tracer, max depth 64, `spp` paths a
+/// pixel), composited over the sky as the other frames: through the blobs' own density
+/// (`nephele_ref.f32`, a second path seed `nephele_ref2.f32`) and through the exported grid
+/// Mitsuba renders (`nephele_grid_ref.f32`, `nephele_grid_ref2.f32`: the light transport
+/// alone); the seconds and the work of the first in `reference.json`.
+fn write_reference(
+    s: &RenderSettings,
+    blobs: &[nephele::blobby::Blob],
+    dense: &grid_medium::DenseGrid,
+    spp: u32,
+    dir: &Path,
+) {
+    let mut s = s.clone();
+    s.cloud.multiple_scattering = true;
+    let medium = BlobMedium::new(&s, blobs);
+    // NEPHELE_MITSUBA_REFERENCE_DEPTH=2: single scattering, against Mitsuba's `max_depth` 2.
+    let max_depth = std::env::var("NEPHELE_MITSUBA_REFERENCE_DEPTH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    let mut record = format!(r#"{{"max_depth": {max_depth}, "#);
+    for (name, seed) in [("ref", 0), ("ref2", 1)] {
+        s.quality.reference = Some(PathTracing {
+            samples: spp,
+            max_depth,
+            seed,
+        });
+        let start = Instant::now();
+        let (f, stats) = render_path_traced(&s, &medium, &Film::default());
+        let seconds = start.elapsed().as_secs_f64();
+        write_f32(&dir.join(format!("nephele_{name}.f32")), composite(&s, &f));
+        let (g, _) = render_path_traced(&s, dense, &Film::default());
+        write_f32(
+            &dir.join(format!("nephele_grid_{name}.f32")),
+            composite(&s, &g),
+        );
+        if seed == 0 {
+            record += &format!(
+                r#""spp": {spp}, "seconds": {seconds:.2}, "paths": {}, "collisions": {}, "rays": {}, "evaluations": {}"#,
+                stats.paths, stats.collisions, stats.rays, stats.evaluations
+            );
+            eprintln!("nephele Reference at {spp} spp: {seconds:.1} s, {stats:?}");
+        }
+    }
+    record += "}";
+    std::fs::write(dir.join("reference.json"), record).unwrap();
 }
 
 fn repo() -> PathBuf {

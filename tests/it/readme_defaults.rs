@@ -1,5 +1,5 @@
 //! The defaults scenes/README.md documents are the ones a scene file gets: every `| field |
-//! default | meaning |` row of the animation tables, and the inline `sun:`, `cloud:` and `shot`
+//! default | meaning |` row of the animation tables and of `quality: Reference`'s, and the inline `sun:`, `cloud:` and `shot`
 //! defaults, parsed as a scene file parses them and compared with `Default`.
 
 use nephele::animate::{AggregationConfig, DiffusionConfig};
@@ -78,6 +78,12 @@ fn the_animation_tables_match_the_defaults() {
     );
     let morph: nephele::animate::morph::MorphConfig<()> = parse("(from: ())");
     check_table("`Morph((from: TARGET, ...))`", "from: (), ", &morph, 3);
+    check_table(
+        "Its settings, in the optional scene field `reference`",
+        "",
+        &nephele::render::PathTracing::default(),
+        3,
+    );
 }
 
 #[test]

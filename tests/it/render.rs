@@ -25,7 +25,7 @@ use rand::{RngExt, SeedableRng};
 // library, `src/render/bench.rs`).
 #[path = "../../src/render/fixture.rs"]
 #[allow(dead_code)] // its timer is the benchmark's
-mod fixture;
+pub(crate) mod fixture;
 use fixture::{settings, test_cloud};
 
 /// Exact chord of the ray `o + t d` (unit d) through the ball (c, r).

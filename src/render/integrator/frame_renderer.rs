@@ -33,6 +33,7 @@ use glam::Vec3A;
 
 use crate::blobby::Blob;
 use crate::render::integrator::motion_blur::{self, Blur, BlurReport, Bounded, Shutter};
+use crate::render::integrator::reference::render_path_traced;
 use crate::render::integrator::{MotionSource, render_medium, render_medium_moving};
 use crate::render::light::grid::LightGrid;
 use crate::render::medium::Medium;
@@ -179,6 +180,15 @@ impl FrameRenderer {
         }
         let previous = self.last.take();
         let (frame, grid, report) = match shutter {
+            // The path tracer: no light grid, the frame's instant (module doc of `reference`).
+            _ if settings.quality.reference.is_some() => {
+                let (frame, _) = render_path_traced(settings, &medium, film);
+                let report = RenderReport {
+                    reuse: Reuse::Buffers,
+                    blur: None,
+                };
+                (frame, None, report)
+            }
             Some(shutter) => {
                 let (frame, grid, blur) =
                     render_blurred(settings, &medium, blobs, shutter, film, motion, previous);

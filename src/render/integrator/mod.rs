@@ -40,6 +40,7 @@ pub(crate) mod frame_renderer;
 pub(crate) mod motion_blur;
 
 mod march;
+pub(crate) mod reference;
 pub(crate) mod surface_rays;
 mod tiles;
 

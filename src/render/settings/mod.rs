@@ -335,6 +335,57 @@ pub enum QualityPreset {
     /// at each partly covered pixel): for backlit shots, whose silver lining is sub-pixel detail
     /// against a bright sky. About 5–8× `Final` (`scenes/README.md`).
     Production,
+    /// A path tracer through the same density ([`PathTracing`], `integrator/reference/`): full
+    /// transport, no approximation, converging to a physically based renderer's image; slow
+    /// and noisy at few samples. For checking a shot's light against the fast march.
+    Reference,
+}
+
+/// The path tracer of `quality: Reference` (`crate::render::integrator::reference`): samples
+/// per pixel and the longest path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PathTracing {
+    /// Paths per pixel (each through a random point of the pixel: a box filter).
+    pub samples: u32,
+    /// Longest path, in Mitsuba's count: scattering orders up to `max_depth − 1` (2 = single
+    /// scattering only).
+    pub max_depth: u32,
+    /// Which paths (mixed with the scene's seed, which also places the billows): a render at
+    /// a second `seed` measures the reference's own noise.
+    pub seed: u64,
+}
+
+impl Default for PathTracing {
+    fn default() -> Self {
+        PathTracing {
+            samples: 64,
+            max_depth: 64,
+            seed: 0,
+        }
+    }
+}
+
+impl PathTracing {
+    /// At least one path a pixel and a depth of at least 2 (single scattering).
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        if self.samples == 0 {
+            return Err(InvalidField::new(
+                "reference.samples",
+                "must be at least 1".to_string(),
+            ));
+        }
+        if self.max_depth < 2 {
+            return Err(InvalidField::new(
+                "reference.max_depth",
+                format!(
+                    "must be at least 2 (single scattering), got {}",
+                    self.max_depth
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A pixel's first ray is at the cloud's edge when its coverage `1 − T` lies strictly inside
@@ -379,6 +430,8 @@ pub struct Quality {
     /// traces `max(samples, time_samples)` rays, each at its own time stratum. Unused when the
     /// shutter is closed.
     pub time_samples: u32,
+    /// Path trace instead of marching (`quality: Reference`; `None`: the march).
+    pub reference: Option<PathTracing>,
 }
 
 impl Quality {
@@ -401,6 +454,11 @@ impl Quality {
                 samples: 1,
                 edge_samples: 8,
                 time_samples: 8,
+                reference: None,
+            },
+            QualityPreset::Reference => Quality {
+                reference: Some(PathTracing::default()),
+                ..Quality::final_frame()
             },
         }
     }
@@ -416,6 +474,7 @@ impl Quality {
             samples: 1,
             edge_samples: 0,
             time_samples: 4,
+            reference: None,
         }
     }
 
@@ -430,6 +489,7 @@ impl Quality {
             samples: 1,
             edge_samples: 0,
             time_samples: 2,
+            reference: None,
         }
     }
 }

@@ -32,7 +32,7 @@ use super::SceneError;
 use crate::animate::{Animation, Timing, Wind};
 use crate::file_error::FileError;
 use crate::render::output::ColorSpace;
-use crate::render::{CloudMaterial, QualityPreset, Sky, Sun};
+use crate::render::{CloudMaterial, PathTracing, QualityPreset, Sky, Sun};
 
 /// Most frames a shot may have (`shot.seconds · shot.fps`): a shot is refused at load beyond
 /// this, before any list of frames is made. A million frames is 11.5 hours at 24 fps.
@@ -88,6 +88,10 @@ pub struct SceneFile {
     /// Render quality preset (`--preview` overrides it with `Preview`).
     #[serde(default)]
     pub quality: QualityPreset,
+    /// The path tracer of `quality: Reference`: paths per pixel, longest path, path seed
+    /// (default: [`PathTracing::default`]; ignored at the other qualities).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<PathTracing>,
     /// Where frames go.
     #[serde(default)]
     pub output: OutputSpec,
@@ -420,6 +424,9 @@ pub fn validate(path: &Path, s: &SceneFile) -> Result<(), SceneError> {
     s.sun.validate().map_err(field)?;
     s.sky.validate(&s.sun).map_err(field)?;
     s.cloud.validate().map_err(field)?;
+    if let Some(r) = &s.reference {
+        r.validate().map_err(field)?;
+    }
     crate::render::memory::check_size(s.shot.width, s.shot.height, s.quality)
         .map_err(|message| bad("shot", message))?;
     Format::check_list(&s.output.formats).map_err(|message| bad("output.formats", message))?;

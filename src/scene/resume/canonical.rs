@@ -16,8 +16,8 @@ use crate::hash::Fnv1a;
 use crate::render::Mattes;
 use crate::render::{BasePlane, CumulusBase};
 use crate::render::{
-    Camera, CloudMaterial, Film, NoiseSettings, Quality, Region, RenderSettings, Shutter, Sky, Sun,
-    TimeSample,
+    Camera, CloudMaterial, Film, NoiseSettings, PathTracing, Quality, Region, RenderSettings,
+    Shutter, Sky, Sun, TimeSample,
 };
 
 /// FNV-1a (64 bits, [`crate::hash::Fnv1a`]) over the canonical bytes written to it.
@@ -344,6 +344,7 @@ impl Canonical for Quality {
             samples,
             edge_samples,
             time_samples,
+            reference,
         } = self;
         e.str("Quality")
             .put(step_scale)
@@ -354,6 +355,15 @@ impl Canonical for Quality {
             .put(samples)
             .put(edge_samples)
             .put(time_samples);
+        // Only when path tracing: the hashes of marched frames do not change.
+        if let Some(PathTracing {
+            samples,
+            max_depth,
+            seed,
+        }) = reference
+        {
+            e.str("reference").put(samples).put(max_depth).put(seed);
+        }
     }
 }
 

@@ -315,7 +315,12 @@ impl Shot {
             quality: if self.options.preview {
                 Quality::preview()
             } else {
-                Quality::preset(f.quality)
+                let mut q = Quality::preset(f.quality);
+                // The path tracer's own settings, at `quality: Reference` only.
+                if q.reference.is_some() && f.reference.is_some() {
+                    q.reference = f.reference;
+                }
+                q
             },
             base: f.cloud.base.map(|b| {
                 let (bottom, height) = (prep.bounds.min.y, prep.bounds.max.y - prep.bounds.min.y);

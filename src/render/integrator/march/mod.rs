@@ -12,7 +12,7 @@ mod pixel;
 mod steps;
 
 pub(crate) use motion::{MotionSum, ScreenMotion};
-pub(crate) use pixel::{PixelResult, PixelSum};
+pub(crate) use pixel::{PixelPasses, PixelResult, PixelSum};
 
 use crate::render::camera::Ray;
 use crate::render::light::ShadowDepths;
