@@ -25,6 +25,8 @@ pub enum Stream {
     Eval = 7,
     /// Motion-blur time samples (per pixel and frame).
     Shutter = 8,
+    /// Light paths of the multiple-scattering estimate (per photon and frame's light grid).
+    Photons = 9,
 }
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash.

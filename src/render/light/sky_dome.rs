@@ -177,6 +177,23 @@ impl SkyDome {
         }
     }
 
+    /// Radiance lighting the cloud from direction `dir`: [`SkyDome::radiance`], except that an
+    /// environment map whose sun was split off (`sun_from_map`) lights without it (the sun is
+    /// a light of its own then).
+    pub(crate) fn light_radiance(&self, dir: Vec3) -> Vec3 {
+        match self {
+            SkyDome::Environment {
+                light,
+                rotate_deg,
+                intensity,
+                ..
+            } => light.as_ref().map_or(Vec3::ZERO, |m| {
+                m.lookup(to_map(dir, *rotate_deg)) * *intensity
+            }),
+            _ => self.radiance(dir),
+        }
+    }
+
     /// Mean radiance of the upper hemisphere (cosine-free average), the ambient light from
     /// above.
     pub(crate) fn upper_mean(&self) -> Vec3 {
