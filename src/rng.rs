@@ -27,6 +27,8 @@ pub enum Stream {
     Shutter = 8,
     /// The reference path tracer's paths (per frame, pixel and sample).
     Path = 9,
+    /// Light paths of the multiple-scattering estimate (per photon and frame's light grid).
+    Photons = 10,
 }
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash.

@@ -25,6 +25,12 @@ Output (stdout, JSON):
                     luminance over the cloud's pixels), the reference's noise excluded
   ss_rel_rmse_raw   the same, noise included; ss_ref_noise: the reference's relative noise
   ss_same_grid_rel_rmse  the same for nephele_grid_ss (both renderers on the same grid)
+  full_rel_rmse     the same for nephele's full image (nephele_ms: single + multiple
+                    scattering) against Mitsuba's full transport; full_rel_rmse_raw,
+                    full_ref_noise as above; full_mean_ratio: nephele's mean over Mitsuba's
+  ms_rel_rmse       the same for the multiple-scattering term alone (nephele_ms − nephele_ss
+                    against Mitsuba's full − single scattering, per pixel, relative to the
+                    term's mean); ms_rel_rmse_raw, ms_ref_noise, ms_mean_ratio
   mean_lum_*        mean ACES luminance of the cloud (alpha > 0.5) for nephele SS / MS and
                     Mitsuba SS / full transport
   base_top_*        mean luminance of the cloud's lowest quarter of rows over its top quarter
@@ -274,12 +280,15 @@ def main():
 
     # Single scattering: linear luminance over the cloud's pixels.
     cloud = alpha > 0.02
-    a, b = (lum(x)[cloud] for x in ref["ss"])
+    a_ss, b_ss = (lum(x)[cloud] for x in ref["ss"])
 
-    def rel_rmse(img):
-        """(relative RMSE with the reference's noise excluded, raw, noise, mean ratio)."""
+    def rel_rmse(img, pair=None):
+        """(relative RMSE with the reference's noise excluded, raw, noise, mean ratio) of the
+        linear image `img` (or its luminance over the cloud) against the mean of `pair` (two
+        renders with different seeds; default Mitsuba's single scattering)."""
+        a, b = pair if pair is not None else (a_ss, b_ss)
         m = 0.5 * (a + b)
-        n = lum(img[..., :3])[cloud]
+        n = img if img.ndim == 1 else lum(img[..., :3])[cloud]
         mse = float(np.mean((n - m) ** 2))
         noise = float(np.mean((a - b) ** 2)) / 4.0  # variance of the mean of two renders
         scale = float(m.mean())
@@ -297,6 +306,24 @@ def main():
     if os.path.exists(grid_path):
         n_grid = load(args.dir, "nephele_grid_ss.f32", (h, w, 4))
         out["ss_same_grid_rel_rmse"], _, _, out["ss_same_grid_mean_ratio"] = rel_rmse(n_grid)
+    if "full" in ref:
+        # The full image (single + multiple scattering) against full transport, per pixel.
+        a_full, b_full = (lum(x)[cloud] for x in ref["full"])
+        (
+            out["full_rel_rmse"],
+            out["full_rel_rmse_raw"],
+            out["full_ref_noise"],
+            out["full_mean_ratio"],
+        ) = rel_rmse(n_ms, (a_full, b_full))
+        # The multiple-scattering term alone (full minus single scattering, nephele's and
+        # Mitsuba's; the noise of the difference of two independent renders per seed).
+        n_term = lum(n_ms[..., :3])[cloud] - lum(n_ss[..., :3])[cloud]
+        (
+            out["ms_rel_rmse"],
+            out["ms_rel_rmse_raw"],
+            out["ms_ref_noise"],
+            out["ms_mean_ratio"],
+        ) = rel_rmse(n_term, (a_full - a_ss, b_full - b_ss))
     # Coverage: do both see the same cloud? (background pixels equal the sky in both)
     bg = alpha < 1e-4
     sky_ref = lum(0.5 * (ref["ss"][0] + ref["ss"][1]))[bg]

@@ -75,7 +75,7 @@ mod bench;
 /// The renderer's version: raised whenever a change makes any frame's pixels or grids differ
 /// (the pinned seeded frame hashes in the tests change with it, and a test fails if they change
 /// while it does not). Frames of another render version are re-rendered on resume.
-pub const RENDER_VERSION: u32 = 3;
+pub const RENDER_VERSION: u32 = 4;
 
 pub(crate) mod bvh;
 pub(crate) mod camera;
@@ -117,7 +117,7 @@ pub use light::grid::LightGrid;
 pub use light::phase;
 pub use light::sky_cells::{SKY_DIRECTIONS, directions as sky_directions};
 pub use light::sky_dome::SkyDome;
-pub use light::{HomogeneousLights, LightDepths, ShadowDepths, Unshadowed};
+pub use light::{HomogeneousLights, LightDepths, MultipleLight, ShadowDepths, Unshadowed};
 pub use medium::blobs::BlobMedium;
 pub use medium::{Homogeneous, Medium, Shape};
 // The shot's opaque surfaces (holdouts, the ground plane):

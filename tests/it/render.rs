@@ -334,6 +334,86 @@ fn frame_renderer_reuses_without_changing_a_bit() {
     assert_eq!(frame_hash(frame), frame_hash(&render_frame(&evolved, &a)));
 }
 
+/// The physically based multiple scattering (`Final`'s fluence grid): the same bits at 1 and 2
+/// threads and pinned; a still cloud seen from a moved camera keeps it (the light grid is
+/// reused), another sky, albedo, seed or contrast traces it again, each frame equal to a fresh
+/// render; the `multiple` pass carries it.
+#[test]
+fn fluence_frames_are_pinned_reused_and_thread_count_independent() {
+    use nephele::render::{Film, FrameOptions, FrameRenderer, Reuse};
+    let blobs = test_cloud(80, 3);
+    let s = settings(64, 36, Quality::final_frame());
+    let render = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render_frame(&s, &blobs))
+    };
+    let (one, two) = (render(1), render(2));
+    assert_eq!(frame_hash(&one), frame_hash(&two), "1 vs 2 threads");
+    assert_eq!(
+        frame_hash(&one),
+        FLUENCE_PINNED,
+        "pinned hash changed: {:#x}",
+        frame_hash(&one)
+    );
+    // Multiple scattering brightens the cloud well beyond single scattering.
+    let mut single = s.clone();
+    single.cloud.multiple_scattering = false;
+    let sum = |f: &nephele::render::Frame| f.rgb.iter().map(|p| p[1] as f64).sum::<f64>();
+    let ss = render_frame(&single, &blobs);
+    assert!(sum(&one) > 1.5 * sum(&ss), "{} vs {}", sum(&one), sum(&ss));
+    let mut moved = s.clone();
+    moved.camera.position.x += 0.2;
+    let mut sky = s.clone();
+    sky.sky = Sky::Uniform {
+        color: Vec3::new(0.3, 0.4, 0.6),
+    };
+    let mut albedo = s.clone();
+    albedo.cloud.albedo = 0.9;
+    let mut seed = s.clone();
+    seed.seed += 1;
+    let mut contrast = s.clone();
+    contrast.cloud.ms_contrast = 0.5;
+    let passes = Film {
+        passes: true,
+        ..Film::default()
+    };
+    let beauty = Film::default();
+    let mut renderer = FrameRenderer::new();
+    for (settings, film, expect) in [
+        (&s, &beauty, Reuse::Buffers),
+        (&moved, &passes, Reuse::LightGrid),
+        (&sky, &beauty, Reuse::Buffers),
+        (&albedo, &beauty, Reuse::Buffers),
+        (&seed, &beauty, Reuse::Buffers),
+        (&contrast, &beauty, Reuse::Buffers),
+    ] {
+        let options = FrameOptions {
+            shutter: None,
+            film,
+            motion: None,
+        };
+        let (frame, report) = renderer.render_reporting(settings, &blobs, &options);
+        assert_eq!(report.reuse, expect);
+        assert_eq!(
+            frame,
+            &FrameRenderer::render_once(settings, &blobs, &options).0
+        );
+        if let Some(p) = &frame.passes {
+            let m: f64 = p.multiple.iter().map(|v| v[1] as f64).sum();
+            let total = sum(frame);
+            assert!(m > 0.3 * total, "multiple pass {m} of {total}");
+        }
+    }
+}
+
+/// Hash of the 64×36 frame of `fluence_frames_are_pinned_reused_and_thread_count_independent`
+/// (the test cloud at `Final`: the fluence grid's multiple scattering). Part of the
+/// render-version fingerprint, as [`PINNED`].
+pub(crate) const FLUENCE_PINNED: u64 = 0x8ffb_d02e_6fe9_a8c1;
+
 /// Hash of the 64×36 frame of `seeded_frame_is_pinned_and_thread_count_independent` (update
 /// deliberately when the renderer's output changes, with the Mitsuba figures of
 /// docs/MEASUREMENTS.md, "Checked against Mitsuba 3", re-measured; last: the billows' band

@@ -202,8 +202,7 @@ impl FrameRenderer {
                 let (grid, reuse) = match previous {
                     Some(l)
                         if still
-                            && l.settings.sun == settings.sun
-                            && l.settings.surfaces == settings.surfaces
+                            && same_light(&l.settings, settings)
                             && l.settings.light_grid_cells(medium.bounds())
                                 == settings.light_grid_cells(medium.bounds()) =>
                     {
@@ -229,6 +228,24 @@ impl FrameRenderer {
         });
         (&last.frame, report)
     }
+}
+
+/// Whether a light grid built under `a` lights a frame under `b` (same medium and cells
+/// given): the sun, the holdouts and, when the grid holds the fluence estimate, everything it
+/// was traced with (sky, albedo, phase, photons, seed, contrast).
+fn same_light(a: &RenderSettings, b: &RenderSettings) -> bool {
+    let (ca, cb) = (&a.cloud, &b.cloud);
+    a.sun == b.sun
+        && a.surfaces == b.surfaces
+        && ca.multiple_scattering == cb.multiple_scattering
+        && a.quality.ms_photons == b.quality.ms_photons
+        && (!ca.multiple_scattering
+            || a.quality.ms_photons == 0
+            || (a.sky == b.sky
+                && ca.albedo == cb.albedo
+                && ca.phase_g == cb.phase_g
+                && ca.ms_contrast == cb.ms_contrast
+                && a.seed == b.seed))
 }
 
 /// The reference the march is checked against: `blobs` rendered with `settings` through the

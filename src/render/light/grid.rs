@@ -15,10 +15,11 @@
 
 use glam::Vec3A;
 
+use crate::render::light::fluence::{FluenceGrid, FluenceSettings};
 use crate::render::light::sky_cells::SKY_DIRECTIONS;
 use crate::render::light::sky_depth::{SKY_DEPTH_STEP, SkyWork, block_sky, sky_depths};
 use crate::render::light::sun_depth::SunGrid;
-use crate::render::light::{LightDepths, ShadowDepths};
+use crate::render::light::{LightDepths, MultipleLight, ShadowDepths};
 use crate::render::medium::Medium;
 use crate::render::medium::lattice::{GridShape, trilinear};
 use crate::render::settings::RenderSettings;
@@ -41,6 +42,9 @@ pub struct LightGrid {
     world_nodes: usize,
     /// Working buffers of the sky's build, kept for the next frame's.
     work: SkyWork,
+    /// The light scattered at least once (the physically based multiple scattering), when the
+    /// settings ask for it ([`FluenceSettings::new`]).
+    pub(in crate::render::light) fluence: Option<FluenceGrid>,
 }
 
 /// What a light grid holds, for the benchmark's work counters.
@@ -75,14 +79,15 @@ impl LightGrid {
         let sun = Vec3A::from(settings.sun.travel_dir());
         let res = settings.light_grid_cells(medium.bounds());
         let casters = settings.surfaces.as_deref().filter(|s| s.casts_shadows());
-        LightGrid::build_reusing(medium, sun, res, previous, casters)
+        let fluence = FluenceSettings::new(settings);
+        LightGrid::build_reusing(medium, sun, res, previous, casters, fluence.as_ref())
     }
 
     /// Light grid for sunlight travelling along `sun_dir` (unit) through `medium`, about `res`
     /// cells on the longest side of its bounds. `None` when the medium has no bounds (empty or
     /// unbounded).
     pub fn build<M: Medium>(medium: &M, sun_dir: Vec3A, res: u32) -> Option<LightGrid> {
-        LightGrid::build_reusing(medium, sun_dir, res, None, None)
+        LightGrid::build_reusing(medium, sun_dir, res, None, None, None)
     }
 
     /// [`LightGrid::build`], reusing the buffers of `previous`: a shot does not allocate and
@@ -92,13 +97,16 @@ impl LightGrid {
     /// the sky's are swept through a world grid of [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times the spacing whose
     /// extinction is the sun grid's samples, prefiltered: the medium is sampled once per frame.
     /// The shadow-casting holdouts of `casters` then take the light from the nodes they hide
-    /// from the sun ([`SunGrid::block`]) and from each sky cell ([`block_sky`]).
+    /// from the sun ([`SunGrid::block`]) and from each sky cell ([`block_sky`]). With
+    /// `fluence`, the light scattered at least once is traced through the sky's coarse grid
+    /// ([`FluenceGrid::build`]; the holdouts do not block it).
     pub(crate) fn build_reusing<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,
         res: u32,
         previous: Option<LightGrid>,
         casters: Option<&Surfaces>,
+        fluence: Option<&FluenceSettings>,
     ) -> Option<LightGrid> {
         let (lo, hi) = medium.bounds()?;
         let shape = GridShape::covering(lo, hi, res);
@@ -108,6 +116,7 @@ impl LightGrid {
         };
         let mut sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
         let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
+        let fluence = fluence.map(|f| FluenceGrid::build(&sky_shape, &work.coarse, f));
         if let Some(c) = casters {
             sun.block(c);
             block_sky(&sky_shape, &work.coarse, c, &mut sky);
@@ -123,6 +132,7 @@ impl LightGrid {
             #[cfg(test)]
             world_nodes: shape.len(),
             work,
+            fluence,
         })
     }
 
@@ -171,6 +181,13 @@ impl ShadowDepths for LightGrid {
     #[inline]
     fn depths(&self, x: Vec3A) -> LightDepths {
         self.lookup(x)
+    }
+
+    #[inline]
+    fn multiple(&self, x: Vec3A) -> MultipleLight {
+        self.fluence
+            .as_ref()
+            .map_or(MultipleLight::ZERO, |f| f.lookup(x))
     }
 }
 

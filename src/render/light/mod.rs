@@ -9,6 +9,7 @@
 //! frame's time) light the march through another (the cloud at a motion-blur sample time).
 
 pub mod envmap;
+pub(crate) mod fluence;
 pub(crate) mod grid;
 pub mod phase;
 pub(crate) mod shading;
@@ -41,10 +42,40 @@ impl LightDepths {
     };
 }
 
+/// Light that has scattered at least once, at a point: its fluence `φ = ∫L dω` (RGB) and flux
+/// `F = ∫L ω dω` (luminance; the direction it flows), from the fluence grid
+/// ([`crate::render::light::fluence`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MultipleLight {
+    /// Fluence, RGB.
+    pub fluence: Vec3A,
+    /// Net flux (of the luminance), a vector along the light's mean direction of travel.
+    pub flux: Vec3A,
+    /// Fluence of sunlight scattered exactly once (luminance; the sun's colour), which
+    /// `fluence` and `flux` leave out: it keeps the phase function's lobe about the sun.
+    pub sun_once: f32,
+}
+
+impl MultipleLight {
+    /// No scattered light.
+    pub const ZERO: MultipleLight = MultipleLight {
+        fluence: Vec3A::ZERO,
+        flux: Vec3A::ZERO,
+        sun_once: 0.0,
+    };
+}
+
 /// Something that knows the optical depths toward the lights anywhere in a frame.
 pub trait ShadowDepths: Sync {
     /// Optical depths from `x` toward the sun and the sky cells.
     fn depths(&self, x: Vec3A) -> LightDepths;
+
+    /// The light scattered at least once at `x`, for the physically based multiple
+    /// scattering (none by default: lights without a fluence grid).
+    #[inline]
+    fn multiple(&self, _x: Vec3A) -> MultipleLight {
+        MultipleLight::ZERO
+    }
 }
 
 /// Nothing casts a shadow (all depths 0).
@@ -63,6 +94,11 @@ impl<L: ShadowDepths> ShadowDepths for Option<L> {
     #[inline]
     fn depths(&self, x: Vec3A) -> LightDepths {
         self.as_ref().map_or(LightDepths::ZERO, |l| l.depths(x))
+    }
+
+    #[inline]
+    fn multiple(&self, x: Vec3A) -> MultipleLight {
+        self.as_ref().map_or(MultipleLight::ZERO, |l| l.multiple(x))
     }
 }
 

@@ -7,6 +7,11 @@
 //! single scattering, the sky cells' single scattering of [`crate::render::light::sky_cells`] and the
 //! multiple-scattering octaves, kept apart so that render passes can write them separately).
 //!
+//! Multiple scattering comes one of two ways. The physically based estimate (`Final`,
+//! `Production`): the fluence grid's light scattered at least once
+//! ([`crate::render::light::fluence`]) scattered once more toward the eye
+//! ([`Shading::fluence_in`]). The octaves (`Preview`):
+//!
 //! - Wrenninge, Kulla & Lundqvist (2013), "Oz: the great and volumetric", SIGGRAPH Talks: the
 //!   multiple-scattering approximation, a sum of octaves with extinction, contribution and
 //!   anisotropy scaled by `a^i, b^i, c^i` (here a = ½, b = [`MS_CONTRIBUTION`], c =
@@ -15,10 +20,13 @@
 use glam::Vec3A;
 
 use crate::render::fast_exp::{exp_neg, exp_neg_all};
-use crate::render::light::LightDepths;
-use crate::render::light::phase::cloud_phase;
+use crate::render::light::fluence::luminance;
+use crate::render::light::phase::{
+    BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, cloud_phase, henyey_greenstein,
+};
 use crate::render::light::sky_cells::{DOWN, SKY_DIRECTIONS, SkyLight, UP};
 use crate::render::light::sky_dome::SkyDome;
+use crate::render::light::{LightDepths, MultipleLight};
 use crate::render::settings::RenderSettings;
 
 /// Radiance in-scattered toward the eye per unit scattering coefficient at one sample, by
@@ -35,7 +43,8 @@ pub(crate) struct InScattered {
     sun_multiple: f32,
     /// Single scattering of the sky cells (RGB).
     sky: Vec3A,
-    /// The multiple-scattering octaves of sky and ground light (RGB).
+    /// The multiple-scattering octaves of sky and ground light, or the fluence grid's
+    /// multiple scattering of sun and sky together (RGB).
     sky_multiple: Vec3A,
 }
 
@@ -58,6 +67,17 @@ impl InScattered {
         self.sun_radiance * self.sun_multiple + self.sky_multiple
     }
 
+    /// The same single scattering with `multiple` (RGB: the fluence grid's estimate) as the
+    /// multiple scattering.
+    #[inline]
+    pub(crate) fn with_multiple(self, multiple: Vec3A) -> InScattered {
+        InScattered {
+            sun_multiple: 0.0,
+            sky_multiple: multiple,
+            ..self
+        }
+    }
+
     /// All of it.
     #[inline]
     pub(crate) fn total(&self) -> Vec3A {
@@ -78,6 +98,13 @@ pub(crate) struct Shading {
     pub g: f32,
     /// Scattering octaves (1 = single scattering only), at most [`MAX_OCTAVES`].
     pub octaves: u32,
+    /// Multiple scattering from the fluence grid ([`Shading::fluence_in`]) instead of the
+    /// octaves (which are then 1).
+    pub fluence: bool,
+    /// The sun's colour at unit luminance (the fluence grid keeps its once-scattered light as
+    /// a luminance).
+    sun_colour: Vec3A,
+
     /// Sky light from above (before occlusion), for the multiple-scattering octaves.
     pub sky_up: Vec3A,
     /// Ground light from below (before occlusion), for the multiple-scattering octaves.
@@ -107,7 +134,8 @@ impl Shading {
         let sun = &settings.sun;
         let dome = SkyDome::new(&settings.sky, sun);
         let tint = SkyDome::sun_tint(&settings.sky, sun);
-        let octaves = if settings.cloud.multiple_scattering {
+        let fluence = settings.cloud.multiple_scattering && settings.quality.ms_photons > 0;
+        let octaves = if settings.cloud.multiple_scattering && !fluence {
             settings.quality.ms_octaves.clamp(1, MAX_OCTAVES)
         } else {
             1
@@ -119,6 +147,12 @@ impl Shading {
             albedo: settings.cloud.albedo.clamp(0.0, 1.0),
             g,
             octaves,
+            fluence,
+            sun_colour: {
+                let c = Vec3A::from(sun.color * tint);
+                let l = luminance(c);
+                if l > 0.0 { c / l } else { Vec3A::ZERO }
+            },
             sky_up: Vec3A::from(dome.upper_mean()),
             sky_down: Vec3A::from(dome.lower_mean()),
             sky: SkyLight::new(&dome, g),
@@ -154,6 +188,52 @@ impl Shading {
             return Vec3A::ZERO;
         }
         self.sky.forward_radiance(dir) * k
+    }
+
+    /// Radiance per unit scattering coefficient that light already scattered at least once
+    /// (`m`, from the fluence grid) scatters toward the eye along a ray of unit direction
+    /// `dir`: the orders ≥ 2.
+    ///
+    /// The light's angular spread is closed by a Henyey–Greenstein lobe about its flux: the
+    /// radiance `L(ω) = φ · HG(ω·F̂, f)` with `f = |F|/φ` has the fluence and flux found (its
+    /// first two moments), and turned by the cloud's phase function it is exactly
+    /// `φ · p(μ, f·g)` (two HG lobes convolve to one with the product of their asymmetries),
+    /// `μ` the cosine between the flux and the way to the eye: positive everywhere, isotropic
+    /// deep inside, forward-peaked where the light still streams (a backlit rim).
+    ///
+    /// Sunlight scattered once (`m.sun_once`) is still spread about the sun's direction by the
+    /// phase function: scattered once more it is `φ₁ · (p ∗ p)(μ_sun)`, the phase function
+    /// convolved with itself (per pair of lobes an HG lobe of the product of their
+    /// asymmetries), `μ_sun` the cosine between the sunlight and the way to the eye.
+    #[inline]
+    pub(crate) fn fluence_in(&self, m: &MultipleLight, dir: Vec3A) -> Vec3A {
+        let once = if m.sun_once > 0.0 {
+            self.sun_colour * (m.sun_once * self.twice_scattered(-self.sun_dir.dot(dir)))
+        } else {
+            Vec3A::ZERO
+        };
+        let phi = luminance(m.fluence);
+        if !(phi > 0.0) {
+            return once;
+        }
+        let f2 = m.flux.length_squared();
+        let (mu, f) = if f2 > 0.0 {
+            let len = f2.sqrt();
+            (-dir.dot(m.flux) / len, (len / phi).min(0.99))
+        } else {
+            (0.0, 0.0)
+        };
+        once + m.fluence * cloud_phase(mu, self.g * f)
+    }
+
+    /// The cloud's phase function convolved with itself at cosine `mu`: light scattered twice.
+    #[inline]
+    fn twice_scattered(&self, mu: f32) -> f32 {
+        let (w, gb) = (BACK_LOBE_WEIGHT, BACK_LOBE_RATIO * self.g);
+        let g = self.g;
+        (1.0 - w) * (1.0 - w) * henyey_greenstein(mu, g * g)
+            + 2.0 * w * (1.0 - w) * henyey_greenstein(mu, g * gb)
+            + w * w * henyey_greenstein(mu, gb * gb)
     }
 
     /// In-scattered radiance per unit scattering coefficient at a point with optical depths

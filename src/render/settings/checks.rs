@@ -189,6 +189,12 @@ impl CloudMaterial {
                 format!("must be in (−1, 1), got {}", self.phase_g),
             ));
         }
+        if !(-1.0..=2.0).contains(&self.ms_contrast) {
+            return Err(InvalidField::new(
+                "cloud.ms_contrast",
+                format!("must be in -1..=2 (0: off), got {}", self.ms_contrast),
+            ));
+        }
         if let Some(b) = self.base {
             for (field, v) in [
                 ("cloud.base.height", b.height),

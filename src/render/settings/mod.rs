@@ -300,9 +300,15 @@ pub struct CloudMaterial {
     pub albedo: f32,
     /// Henyey–Greenstein asymmetry (forward scattering > 0).
     pub phase_g: f32,
-    /// Add the multiple-scattering approximation to single scattering (false = single
-    /// scattering only, the physically exact core).
+    /// Add multiple scattering to single scattering (false = single scattering only): the
+    /// physically based fluence estimate at `Final` and `Production`, the octaves at `Preview`
+    /// (`Quality::ms_photons`).
     pub multiple_scattering: bool,
+    /// Artistic contrast of the multiple scattering (0, the default: the physical estimate
+    /// untouched): the scattered light × `(φ/φ̄)^ms_contrast`, `φ̄` the cloud's mean fluence, so
+    /// positive values brighten the bright parts and darken the dim ones, negative even them
+    /// out. In `-1..=2`; the fluence estimate only (not the octaves).
+    pub ms_contrast: f32,
     /// The billows.
     pub noise: NoiseSettings,
     /// A flat cumulus base (`None`, the default: shapes keep their underside).
@@ -317,6 +323,7 @@ impl Default for CloudMaterial {
             albedo: 0.95,
             phase_g: 0.75,
             multiple_scattering: true,
+            ms_contrast: 0.0,
             noise: NoiseSettings::default(),
             base: None,
         }
@@ -397,6 +404,12 @@ pub(crate) const EDGE_COVERAGE: (f32, f32) = (1e-3, 0.999);
 /// wide still gets a shadowed side).
 pub(crate) const MIN_LIGHT_GRID_CELLS: u32 = 24;
 
+/// Light paths a `Final` frame traces for its multiple scattering (docs/MEASUREMENTS.md,
+/// "Multiple scattering: the fluence grid").
+pub(crate) const FINAL_PHOTONS: u32 = 1 << 20;
+/// The same at `Production`.
+pub(crate) const PRODUCTION_PHOTONS: u32 = 1 << 20;
+
 /// Speed/quality trade-offs of the ray marcher.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quality {
@@ -411,8 +424,11 @@ pub struct Quality {
     /// since shadow detail finer than a pixel cannot show (`RenderSettings::light_grid_cells`).
     pub shadow_cell_pixels: f32,
     /// Scattering octaves of the multiple-scattering approximation (1 = single scattering
-    /// only; at most 6).
+    /// only; at most 6), when `ms_photons` is 0.
     pub ms_octaves: u32,
+    /// Light paths traced per frame for the physically based multiple scattering (the
+    /// fluence grid, `render::light::fluence`); 0: the octaves instead.
+    pub ms_photons: u32,
     /// Optical thickness `σ·h` of a march step inside the cloud where the ray enters it; deeper
     /// in, steps grow as the transmittance falls (each absorbs about this much of the pixel's
     /// light), up to an optical thickness of 1. Smaller = less grain at the sunlit surface,
@@ -450,6 +466,7 @@ impl Quality {
                 shadow_grid: 448,
                 shadow_cell_pixels: 0.5,
                 ms_octaves: 3,
+                ms_photons: PRODUCTION_PHOTONS,
                 optical_step: 0.04,
                 samples: 1,
                 edge_samples: 8,
@@ -470,6 +487,7 @@ impl Quality {
             shadow_grid: 224,
             shadow_cell_pixels: 1.0,
             ms_octaves: 3,
+            ms_photons: FINAL_PHOTONS,
             optical_step: 0.08,
             samples: 1,
             edge_samples: 0,
@@ -485,6 +503,7 @@ impl Quality {
             shadow_grid: 48,
             shadow_cell_pixels: 1.0,
             ms_octaves: 2,
+            ms_photons: 0,
             optical_step: 0.2,
             samples: 1,
             edge_samples: 0,

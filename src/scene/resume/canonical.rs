@@ -319,6 +319,7 @@ impl Canonical for CloudMaterial {
             albedo,
             phase_g,
             multiple_scattering,
+            ms_contrast,
             noise,
             base,
         } = self;
@@ -330,6 +331,10 @@ impl Canonical for CloudMaterial {
             .put(multiple_scattering)
             .put(noise)
             .put(base);
+        // Added later: only when set, so a cloud without it keeps its hash.
+        if *ms_contrast != 0.0 {
+            e.str("ms_contrast").put(ms_contrast);
+        }
     }
 }
 
@@ -340,6 +345,7 @@ impl Canonical for Quality {
             shadow_grid,
             shadow_cell_pixels,
             ms_octaves,
+            ms_photons,
             optical_step,
             samples,
             edge_samples,
@@ -363,6 +369,10 @@ impl Canonical for Quality {
         }) = reference
         {
             e.str("reference").put(samples).put(max_depth).put(seed);
+        }
+        // Added with the fluence estimate (render version 4).
+        if *ms_photons != 0 {
+            e.str("ms_photons").put(ms_photons);
         }
     }
 }

@@ -73,7 +73,10 @@ impl<const PASSES: bool> Accumulator<PASSES> {
         let w = self.weights.get_or_insert_with(|| shading.ray_weights(dir));
         counters::add(Counter::ShadedSamples, 1);
         let depths = lights.depths(x);
-        let light = shading.in_scattered(w, &depths);
+        let mut light = shading.in_scattered(w, &depths);
+        if shading.fluence {
+            light = light.with_multiple(shading.fluence_in(&lights.multiple(x), dir));
+        }
         let k = absorbed * shading.albedo;
         self.rgb += light.total() * k;
         if PASSES {

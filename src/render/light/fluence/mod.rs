@@ -1,0 +1,241 @@
+//! The physically based multiple-scattering estimate: a fluence grid filled once per frame by
+//! tracing light paths from the sun and the sky through the cloud, looked up by the march.
+//!
+//! In: the light grid's coarse lattice and its extinction (the medium sampled once a frame,
+//! [`crate::render::light::grid::LightGrid`]) and [`FluenceSettings`]. Out: [`FluenceGrid`],
+//! the fluence `φ` (RGB) and flux `F` of light scattered at least once (and apart from them the
+//! fluence of sunlight scattered exactly once), per node, smoothed,
+//! trilinear anywhere ([`FluenceGrid::lookup`]); the shader turns them into the radiance the
+//! orders ≥ 2 scatter toward the eye ([`crate::render::light::shading::Shading::fluence_in`]).
+//!
+//! - Jensen & Christensen (1998), "Efficient simulation of light transport in scenes with
+//!   participating media using photon maps"; Elek et al. (2012), "Interactive cloud rendering
+//!   using temporally coherent photon mapping": photons from the lights, gathered on a grid.
+//! - Zhou et al. (2008), "Compensated ray marching": the low-frequency multiple scattering on a
+//!   coarse grid, the detail (single scattering, the fine density) in the march.
+//! - The track-length estimator (Spanier 1966): each flight adds its length to the cells it
+//!   crosses: every photon informs every cell on its way, not only where it collides.
+//!
+//! How the grid's sizes were chosen: docs/MEASUREMENTS.md, "Multiple scattering: the fluence
+//! grid".
+
+mod cells;
+mod trace;
+
+use glam::Vec3A;
+
+use crate::render::light::MultipleLight;
+use crate::render::light::sky_dome::SkyDome;
+use crate::render::medium::lattice::{GridShape, trilinear};
+use crate::render::settings::RenderSettings;
+
+use cells::Cells;
+pub(crate) use trace::luminance;
+use trace::{PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
+
+/// Most cells on the fluence grid's longest side: the light grid's coarse (sky) lattice is
+/// coarsened by whole factors until it fits.
+pub(crate) const MAX_FLUENCE_CELLS: usize = 40;
+
+/// Passes of the `[1 2 1] / 4` filter along each axis over the summed grid (the photons'
+/// noise).
+pub(crate) const SMOOTHING_PASSES: usize = 1;
+
+/// What a frame's fluence grid is made of besides the medium.
+#[derive(Clone, Debug)]
+pub(crate) struct FluenceSettings {
+    /// Unit direction the sunlight travels.
+    pub sun_dir: Vec3A,
+    /// The sun's irradiance (colour × intensity × the atmosphere's tint).
+    pub sun: Vec3A,
+    /// Radiance of each sky stratum (`trace::sky_direction` at its centre), the ground below
+    /// the horizon included.
+    pub sky: Vec<Vec3A>,
+    /// Single-scattering albedo.
+    pub albedo: f32,
+    /// Phase asymmetry.
+    pub g: f32,
+    /// Photons per frame.
+    pub photons: u32,
+    /// The scene seed.
+    pub seed: u64,
+    /// `cloud.ms_contrast` (0: the physical estimate untouched).
+    pub contrast: f32,
+}
+
+impl FluenceSettings {
+    /// The estimate `settings` ask for: `None` without `cloud.multiple_scattering` or when the
+    /// quality uses the octaves (`quality.ms_photons` 0).
+    pub(crate) fn new(settings: &RenderSettings) -> Option<FluenceSettings> {
+        if !settings.cloud.multiple_scattering || settings.quality.ms_photons == 0 {
+            return None;
+        }
+        let sun = &settings.sun;
+        let dome = SkyDome::new(&settings.sky, sun);
+        let tint = SkyDome::sun_tint(&settings.sky, sun);
+        let sky = (0..SKY_STRATA)
+            .map(|s| Vec3A::from(dome.light_radiance(sky_direction(s, 0.5, 0.5).into())))
+            .collect();
+        Some(FluenceSettings {
+            sun_dir: Vec3A::from(sun.travel_dir()),
+            sun: Vec3A::from(sun.color * sun.intensity * tint),
+            sky,
+            albedo: settings.cloud.albedo.clamp(0.0, 1.0),
+            g: settings.cloud.phase_g.clamp(-0.99, 0.99),
+            photons: settings.quality.ms_photons,
+            seed: settings.seed,
+            contrast: settings.cloud.ms_contrast,
+        })
+    }
+}
+
+/// Fluence `φ` (RGB) and flux `F` of light scattered at least once, on the nodes of a regular
+/// grid (node-major, [`PER_CELL`] values a node).
+#[derive(Clone, Debug)]
+pub(crate) struct FluenceGrid {
+    shape: GridShape,
+    inv_h: f32,
+    values: Vec<f32>,
+}
+
+impl FluenceGrid {
+    /// The fluence grid of the medium whose extinction `sigma` is given on the nodes of
+    /// `shape` (the light grid's coarse lattice), lit as `s` says.
+    pub(crate) fn build(shape: &GridShape, sigma: &[f32], s: &FluenceSettings) -> FluenceGrid {
+        let (shape, sigma) = coarsen(shape, sigma, MAX_FLUENCE_CELLS);
+        let cells = Cells::new(&shape, &sigma);
+        let d = cells.dims;
+        let half = Vec3A::new(d[0] as f32, d[1] as f32, d[2] as f32) * 0.5;
+        let sources = Sources::split(
+            half,
+            half.length(),
+            s.sun_dir,
+            s.sun,
+            s.sky.clone(),
+            s.photons,
+        );
+        let (sums, unit) = trace::trace(&cells, &sources, s.albedo, s.g, s.seed);
+        let k = unit / SCALE;
+        let mut values: Vec<f32> = sums.iter().map(|&v| v as f32 * k).collect();
+        for _ in 0..SMOOTHING_PASSES {
+            smooth(&shape, &mut values);
+        }
+        if s.contrast != 0.0 {
+            contrast(&sigma, &mut values, s.contrast);
+        }
+        FluenceGrid {
+            inv_h: 1.0 / shape.h,
+            shape,
+            values,
+        }
+    }
+
+    /// The fluence and flux at `x` (trilinear, clamped to the grid).
+    #[inline]
+    pub(crate) fn lookup(&self, x: Vec3A) -> MultipleLight {
+        let mut v = [0.0f32; PER_CELL];
+        trilinear::<PER_CELL, f32>(&self.shape, self.inv_h, &self.values, x, &mut v);
+        MultipleLight {
+            fluence: Vec3A::new(v[0], v[1], v[2]),
+            flux: Vec3A::new(v[3], v[4], v[5]),
+            sun_once: v[6],
+        }
+    }
+}
+
+/// `shape` and its node values `sigma` coarsened by the smallest whole factor that brings the
+/// longest side to at most `max` nodes: each coarse node the mean of the block of nodes it
+/// stands for (and centred on it).
+fn coarsen(shape: &GridShape, sigma: &[f32], max: usize) -> (GridShape, Vec<f32>) {
+    let f = shape
+        .dims
+        .iter()
+        .max()
+        .copied()
+        .unwrap_or(1)
+        .div_ceil(max.max(2));
+    if f <= 1 {
+        return (shape.clone(), sigma.to_vec());
+    }
+    let [nx, ny, nz] = shape.dims;
+    let dims = [nx.div_ceil(f), ny.div_ceil(f), nz.div_ceil(f)];
+    let coarse = GridShape {
+        origin: shape.origin + Vec3A::splat(0.5 * (f - 1) as f32 * shape.h),
+        h: f as f32 * shape.h,
+        dims,
+    };
+    let mut out = vec![0.0f32; coarse.len()];
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let mut sum = 0.0;
+                for c in 0..f {
+                    let z = (k * f + c).min(nz - 1);
+                    for b in 0..f {
+                        let y = (j * f + b).min(ny - 1);
+                        let row = nx * (y + ny * z);
+                        for a in 0..f {
+                            sum += sigma[row + (i * f + a).min(nx - 1)];
+                        }
+                    }
+                }
+                out[i + dims[0] * (j + dims[1] * k)] = sum / (f * f * f) as f32;
+            }
+        }
+    }
+    (coarse, out)
+}
+
+/// One pass of the `[1 2 1] / 4` filter along x, y and z over every value of the grid (edges
+/// clamped).
+fn smooth(shape: &GridShape, values: &mut [f32]) {
+    let [nx, ny, nz] = shape.dims;
+    let stride = [1, nx, nx * ny];
+    let n = [nx, ny, nz];
+    let mut tmp = values.to_vec();
+    for axis in 0..3 {
+        let s = stride[axis];
+        for node in 0..shape.len() {
+            let c = (node / s) % n[axis];
+            let lo = if c > 0 { node - s } else { node };
+            let hi = if c + 1 < n[axis] { node + s } else { node };
+            for v in 0..PER_CELL {
+                tmp[node * PER_CELL + v] = 0.25
+                    * (values[lo * PER_CELL + v]
+                        + 2.0 * values[node * PER_CELL + v]
+                        + values[hi * PER_CELL + v]);
+            }
+        }
+        values.copy_from_slice(&tmp);
+    }
+}
+
+/// The artistic contrast (`cloud.ms_contrast` = `c`): each node's fluence and flux times
+/// `(φ/φ̄)^c`, `φ` all the scattered light's fluence (luminance), `φ̄` its extinction-weighted
+/// mean over the cloud: the mean stays,
+/// bright parts (sunlit tops) brighten and dim ones (bases, the core) darken for `c > 0`,
+/// the light evens out for `c < 0` (Wrenninge 2015 keeps such a dial apart from the physics).
+fn contrast(sigma: &[f32], values: &mut [f32], c: f32) {
+    let lum = |v: &[f32]| luminance(Vec3A::new(v[0], v[1], v[2])) + v[6];
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (s, v) in sigma.iter().zip(values.chunks(PER_CELL)) {
+        num += (*s * lum(v)) as f64;
+        den += *s as f64;
+    }
+    if !(den > 0.0 && num > 0.0) {
+        return;
+    }
+    let mean = (num / den) as f32;
+    for v in values.chunks_mut(PER_CELL) {
+        let l = lum(v);
+        if l > 0.0 {
+            let k = (l / mean).powf(c);
+            for x in v.iter_mut() {
+                *x *= k;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,180 @@
+use super::*;
+use crate::render::light::grid::LightGrid;
+use crate::render::light::phase::cloud_phase;
+use crate::render::{Homogeneous, Shape};
+
+/// A ball of radius 1 and extinction `sigma` at the origin.
+fn ball(sigma: f32) -> Homogeneous {
+    Homogeneous {
+        shape: Shape::Ball {
+            center: Vec3A::ZERO,
+            radius: 1.0,
+        },
+        sigma_t: sigma,
+        step: 0.02,
+    }
+}
+
+/// Sun only (irradiance 1 in every channel), travelling along `sun_dir`.
+fn sun_only(sun_dir: Vec3A, albedo: f32, photons: u32) -> FluenceSettings {
+    FluenceSettings {
+        sun_dir,
+        sun: Vec3A::ONE,
+        sky: vec![Vec3A::ZERO; SKY_STRATA],
+        albedo,
+        g: 0.75,
+        photons,
+        seed: 5,
+        contrast: 0.0,
+    }
+}
+
+fn fluence_of(m: &Homogeneous, s: &FluenceSettings, res: u32) -> FluenceGrid {
+    let grid = LightGrid::build_reusing(m, s.sun_dir, res, None, None, Some(s)).expect("a ball");
+    grid.fluence.expect("asked for")
+}
+
+/// Distance from `y` inside the unit ball to its surface along unit `d`.
+fn to_surface(y: Vec3A, d: Vec3A) -> f32 {
+    let b = y.dot(d);
+    -b + (b * b - (y.length_squared() - 1.0)).max(0.0).sqrt()
+}
+
+/// The fluence and flux at `x` of sunlight scattered exactly once in the ball (irradiance 1,
+/// extinction `sigma`, albedo `albedo`), by quadrature: over directions `ω` of arrival, the
+/// line back from `x` through the ball, each point lit through its own depth toward the sun.
+fn first_order(x: Vec3A, sun_dir: Vec3A, sigma: f32, albedo: f32) -> (f32, Vec3A) {
+    let (nu, nphi, ns) = (200, 100, 200);
+    let (mut phi, mut flux) = (0.0f64, Vec3A::ZERO);
+    for i in 0..nu {
+        let mu = -1.0 + 2.0 * (i as f32 + 0.5) / nu as f32;
+        let r = (1.0 - mu * mu).sqrt();
+        for j in 0..nphi {
+            let a = 2.0 * std::f32::consts::PI * (j as f32 + 0.5) / nphi as f32;
+            // ω: the light's direction of travel at x.
+            let w = Vec3A::new(r * a.cos(), mu, r * a.sin());
+            let back = to_surface(x, -w);
+            let p = cloud_phase(sun_dir.dot(w), 0.75);
+            let mut l = 0.0f32;
+            let ds = back / ns as f32;
+            for k in 0..ns {
+                let s = (k as f32 + 0.5) * ds;
+                let y = x - w * s;
+                let t_sun = (-sigma * to_surface(y, -sun_dir)).exp();
+                l += albedo * sigma * p * t_sun * (-sigma * s).exp() * ds;
+            }
+            let dw = 4.0 * std::f32::consts::PI / (nu * nphi) as f32;
+            phi += (l * dw) as f64;
+            flux += w * (l * dw);
+        }
+    }
+    (phi as f32, flux)
+}
+
+#[test]
+fn fluence_in_a_thin_ball_matches_the_first_order_by_quadrature() {
+    // At albedo 0.05 the orders beyond the first are under 3 % of it (optical radius 1); the
+    // ball's rim on the fluence grid's 40 cells and the smoothing move the first order's
+    // fluence by up to about 5 % either way (−5.4 % at the centre, +5.5 % half-way down).
+    let (sigma, albedo) = (1.0, 0.05);
+    let sun_dir = Vec3A::new(0.3, -1.0, 0.2).normalize();
+    let f = fluence_of(&ball(sigma), &sun_only(sun_dir, albedo, 1 << 18), 240);
+    for x in [
+        Vec3A::ZERO,
+        sun_dir * 0.5,
+        -sun_dir * 0.5,
+        Vec3A::new(0.5, 0.0, 0.0),
+    ] {
+        let (phi, flux) = first_order(x, sun_dir, sigma, albedo);
+        let got = f.lookup(x);
+        let rel = got.sun_once / phi - 1.0;
+        assert!(
+            (-0.08..0.08).contains(&rel),
+            "φ₁ at {x}: {} against the first order {phi} ({rel:+.3})",
+            got.sun_once
+        );
+        // The higher orders: a few per cent at this albedo, white.
+        let rest = got.fluence.x / phi;
+        assert!((0.001..0.06).contains(&rest), "orders ≥ 2 at {x}: {rest}");
+        assert!((got.fluence.y - got.fluence.x).abs() <= 1e-5 * got.fluence.x);
+        // At the centre their flux still flows with the sun's light (forward scattering), as
+        // the first order's does (off the axis it flows out of the ball).
+        if x == Vec3A::ZERO {
+            assert!(got.flux.dot(sun_dir) > 0.0, "flux at {x}: {}", got.flux);
+            assert!(flux.dot(sun_dir) > 0.0);
+        }
+    }
+}
+
+#[test]
+fn fluence_is_bit_identical_at_any_thread_count() {
+    let s = sun_only(Vec3A::new(-0.5, -0.8, 0.1).normalize(), 0.95, 1 << 14);
+    let m = ball(8.0);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a pool")
+            .install(|| fluence_of(&m, &s, 64).values)
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(3));
+    assert!(one.iter().any(|&v| v > 0.0));
+}
+
+#[test]
+fn a_thick_white_ball_glows_more_than_its_first_order() {
+    // Albedo 1, optical radius 10: the light diffuses through; at the centre the orders ≥ 1
+    // are far more than the first alone, and the far side is lit (the octaves' failing).
+    let sun_dir = Vec3A::NEG_Y;
+    let f = fluence_of(&ball(10.0), &sun_only(sun_dir, 1.0, 1 << 16), 64);
+    let (first, _) = first_order(Vec3A::ZERO, sun_dir, 10.0, 1.0);
+    let all = |x: Vec3A| {
+        let m = f.lookup(x);
+        m.fluence.x + m.sun_once
+    };
+    let centre = all(Vec3A::ZERO);
+    assert!(
+        centre > 3.0 * first,
+        "centre {centre} vs first order {first}"
+    );
+    let far = all(sun_dir * 0.8);
+    assert!(far > 0.1 * centre, "far side {far} vs centre {centre}");
+    // Flux flows away from the sun at the far side.
+    assert!(f.lookup(sun_dir * 0.8).flux.dot(sun_dir) > 0.0);
+}
+
+#[test]
+fn the_contrast_keeps_the_mean_and_spreads_the_light() {
+    let sun_dir = Vec3A::NEG_Y;
+    let mut s = sun_only(sun_dir, 0.95, 1 << 15);
+    let plain = fluence_of(&ball(10.0), &s, 48);
+    s.contrast = 1.0;
+    let spread = fluence_of(&ball(10.0), &s, 48);
+    let (top, bottom) = (-sun_dir * 0.7, sun_dir * 0.7);
+    let all = |g: &FluenceGrid, x: Vec3A| {
+        let m = g.lookup(x);
+        m.fluence.x + m.sun_once
+    };
+    let ratio = |g: &FluenceGrid| all(g, top) / all(g, bottom);
+    assert!(ratio(&plain) > 1.0);
+    // c = 1 squares the ratio of any two nodes.
+    let r = ratio(&spread) / ratio(&plain).powi(2);
+    assert!((r - 1.0).abs() < 0.25, "{r}");
+}
+
+#[test]
+fn coarsening_keeps_the_mean_and_fits() {
+    let shape = GridShape {
+        origin: Vec3A::ZERO,
+        h: 0.1,
+        dims: [170, 60, 7],
+    };
+    let sigma: Vec<f32> = (0..shape.len()).map(|i| (i % 13) as f32).collect();
+    let (c, v) = coarsen(&shape, &sigma, 80);
+    assert_eq!(c.dims, [57, 20, 3]);
+    assert!((c.h - 0.3).abs() < 1e-6);
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    assert!((mean(&v) - mean(&sigma)).abs() < 0.1);
+}
