@@ -33,11 +33,16 @@ const LIGHTS: [(&str, Vec3); 3] = [
 ];
 
 /// Per light, the bounds of `Final`'s MS term against the reference: (relative RMSE per pixel,
-/// `|mean ratio − 1|`). Measured with the octave approximation (Wrenninge et al. 2013; 96×54,
-/// 2 × 256 paths a pixel): side 0.430 / 1.282, behind 0.966 / 1.819, above 0.506 / 1.321 —
-/// the octaves are far too bright on this thick test cloud; the bounds are those × 1.3.
-// BOUND: set after the MS estimate lands
-const MS_BOUNDS: [(f64, f64); 3] = [(0.56, 0.37), (1.26, 1.07), (0.66, 0.42)];
+/// `|mean ratio − 1|`), about 1.3 × what the fluence estimate measures (96×54, 2 × 256 paths a
+/// pixel, the reference's noise excluded): side 0.172 / 0.944, behind 0.173 / 0.912, above
+/// 0.127 / 0.959. The octaves it replaced measured 0.430 / 1.282, 0.966 / 1.819, 0.506 / 1.321
+/// here. (Reference's single scattering reads about 4 % below the march's on heterogeneous
+/// media, an open question stated in docs/MEASUREMENTS.md; part of these figures.)
+const MS_BOUNDS: [(f64, f64); 3] = [(0.22, 0.09), (0.22, 0.12), (0.17, 0.07)];
+
+/// The full image's bounds (per pixel, `|mean ratio − 1|`) for every light: measured 0.120 /
+/// 1.015, 0.128 / 1.006, 0.094 / 1.026.
+const FULL_BOUNDS: (f64, f64) = (0.16, 0.05);
 
 const SIZE: (u32, u32) = (96, 54);
 
@@ -124,12 +129,18 @@ fn multiple_scattering_against_reference() {
             "{name}: MS rel RMSE {rmse:.3} (reference noise {noise:.3}), mean ratio {ratio:.3}; \
              full image rel RMSE {full_rmse:.3} (noise {full_noise:.3}), mean ratio {full_ratio:.3}"
         );
-        // BOUND: set after the MS estimate lands
         assert!(rmse < rmse_bound, "{name}: MS per pixel {rmse}");
-        // BOUND: set after the MS estimate lands
         assert!(
             (ratio - 1.0).abs() < ratio_bound,
             "{name}: MS mean ratio {ratio}"
+        );
+        assert!(
+            full_rmse < FULL_BOUNDS.0,
+            "{name}: full image per pixel {full_rmse}"
+        );
+        assert!(
+            (full_ratio - 1.0).abs() < FULL_BOUNDS.1,
+            "{name}: full image mean ratio {full_ratio}"
         );
     }
 }

@@ -14,8 +14,9 @@
 //! the sun's summed along light columns in [`crate::render::light::sun_depth`].
 
 use glam::Vec3A;
+use rayon::prelude::*;
 
-use crate::render::light::fluence::{FluenceGrid, FluenceSettings};
+use crate::render::light::fluence::{FluenceGrid, FluenceSettings, MAX_FLUENCE_CELLS};
 use crate::render::light::sky_cells::SKY_DIRECTIONS;
 use crate::render::light::sky_depth::{SKY_DEPTH_STEP, SkyWork, block_sky, sky_depths};
 use crate::render::light::sun_depth::SunGrid;
@@ -116,7 +117,10 @@ impl LightGrid {
         };
         let mut sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
         let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
-        let fluence = fluence.map(|f| FluenceGrid::build(&sky_shape, &work.coarse, f));
+        let fluence = fluence.map(|f| match fluence_lattice(lo, hi, &sky_shape, &sun) {
+            Some((shape, sigma)) => FluenceGrid::build(&shape, &sigma, f),
+            None => FluenceGrid::build(&sky_shape, &work.coarse, f),
+        });
         if let Some(c) = casters {
             sun.block(c);
             block_sky(&sky_shape, &work.coarse, c, &mut sky);
@@ -189,6 +193,39 @@ impl ShadowDepths for LightGrid {
             .as_ref()
             .map_or(MultipleLight::ZERO, |f| f.lookup(x))
     }
+}
+
+/// The lattice the fluence estimate is traced through when the sky's coarse grid is too coarse
+/// for it (`None`: that grid, which [`FluenceGrid::build`] coarsens to
+/// [`MAX_FLUENCE_CELLS`]): a small frame's light grid follows its pixels, but the scattered
+/// light's cells must follow the cloud, so the estimate of a 96×54 frame is as fine as a
+/// 1080p one's. Sampled from the sun grid's prefiltered extinction at twice the fluence's
+/// resolution (the build then averages blocks of two).
+fn fluence_lattice(
+    lo: Vec3A,
+    hi: Vec3A,
+    sky_shape: &GridShape,
+    sun: &SunGrid,
+) -> Option<(GridShape, Vec<f32>)> {
+    let fine = 2 * MAX_FLUENCE_CELLS - 2;
+    if sky_shape.dims.iter().max().copied().unwrap_or(0) >= fine {
+        return None;
+    }
+    // `covering` pads three nodes: `fine` nodes on the longest side.
+    let shape = GridShape::covering(lo, hi, (fine - 3) as u32);
+    let [nx, ny, _] = shape.dims;
+    let mut sigma = vec![0.0f32; shape.len()];
+    sigma
+        .par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    slice[i + nx * j] = sun.coarse_extinction(shape.node(i, j, k));
+                }
+            }
+        });
+    Some((shape, sigma))
 }
 
 #[cfg(test)]
