@@ -401,7 +401,7 @@ const RENDER_VERSIONS: [(u32, u64); 4] = [
     (2, 0x817d_116f_269f_e5e4),
     (3, 0x0fc4_7ef2_d7b6_9892),
     // The fluence grid's multiple scattering at `Final` (and `render::FLUENCE_PINNED` in).
-    (4, 0xcea8_87e0_d4a1_4be3),
+    (4, 0xe98f_1a9f_e1b0_0bbf),
 ];
 
 /// Every pinned hash of a seeded frame: [`PINNED_FRAMES`]' and the renderer test's

@@ -100,7 +100,8 @@ impl LightGrid {
     /// The shadow-casting holdouts of `casters` then take the light from the nodes they hide
     /// from the sun ([`SunGrid::block`]) and from each sky cell ([`block_sky`]). With
     /// `fluence`, the light scattered at least once is traced through the sky's coarse grid
-    /// ([`FluenceGrid::build`]; the holdouts do not block it).
+    /// ([`FluenceGrid::build`]; a shadow-casting holdout between a photon's first collision and
+    /// its light drops it).
     pub(crate) fn build_reusing<M: Medium>(
         medium: &M,
         sun_dir: Vec3A,
@@ -118,8 +119,8 @@ impl LightGrid {
         let mut sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
         let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
         let fluence = fluence.map(|f| match fluence_lattice(lo, hi, &sky_shape, &sun) {
-            Some((shape, sigma)) => FluenceGrid::build(&shape, &sigma, f),
-            None => FluenceGrid::build(&sky_shape, &work.coarse, f),
+            Some((shape, sigma)) => FluenceGrid::build(&shape, &sigma, f, casters),
+            None => FluenceGrid::build(&sky_shape, &work.coarse, f, casters),
         });
         if let Some(c) = casters {
             sun.block(c);

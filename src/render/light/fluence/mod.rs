@@ -29,9 +29,10 @@ use crate::render::light::sky_dome::SkyDome;
 use crate::render::medium::lattice::{GridShape, trilinear};
 use crate::render::settings::RenderSettings;
 
+use crate::render::surfaces::Surfaces;
 use cells::Cells;
 pub(crate) use trace::luminance;
-use trace::{PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
+use trace::{Casters, PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
 
 /// Most cells on the fluence grid's longest side: the light grid's coarse (sky) lattice is
 /// coarsened by whole factors until it fits.
@@ -101,7 +102,14 @@ pub(crate) struct FluenceGrid {
 impl FluenceGrid {
     /// The fluence grid of the medium whose extinction `sigma` is given on the nodes of
     /// `shape` (the light grid's coarse lattice), lit as `s` says.
-    pub(crate) fn build(shape: &GridShape, sigma: &[f32], s: &FluenceSettings) -> FluenceGrid {
+    /// Photons whose first collision a shadow-casting holdout of `casters` hides from the
+    /// light are dropped.
+    pub(crate) fn build(
+        shape: &GridShape,
+        sigma: &[f32],
+        s: &FluenceSettings,
+        casters: Option<&Surfaces>,
+    ) -> FluenceGrid {
         let (shape, sigma) = coarsen(shape, sigma, MAX_FLUENCE_CELLS);
         let cells = Cells::new(&shape, &sigma);
         let d = cells.dims;
@@ -114,7 +122,14 @@ impl FluenceGrid {
             s.sky.clone(),
             s.photons,
         );
-        let (sums, unit) = trace::trace(&cells, &sources, s.albedo, s.g, s.seed);
+        let casters = casters
+            .filter(|c| c.casts_shadows())
+            .map(|surfaces| Casters {
+                surfaces,
+                origin: shape.origin,
+                h: shape.h,
+            });
+        let (sums, unit) = trace::trace(&cells, &sources, s.albedo, s.g, s.seed, casters.as_ref());
         let k = unit / SCALE;
         let mut values: Vec<f32> = sums.iter().map(|&v| v as f32 * k).collect();
         for _ in 0..SMOOTHING_PASSES {

@@ -22,6 +22,8 @@
 use std::f32::consts::PI;
 
 use glam::Vec3A;
+
+use crate::render::surfaces::Surfaces;
 use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
@@ -203,6 +205,7 @@ pub(crate) fn trace(
     albedo: f32,
     g: f32,
     seed: u64,
+    casters: Option<&Casters<'_>>,
 ) -> (Vec<i64>, f32) {
     let (sun_w, sky_w) = sources.weights();
     let unit = sky_w
@@ -225,7 +228,13 @@ pub(crate) fn trace(
                 let (origin, dir, w) = emit(sources, &sun_w, &sky_w, i as u32, &mut rng);
                 if w.max_element() > 0.0 {
                     let sun = (i as u32) < sources.sun_photons;
-                    path(cells, origin, dir, w, sun, albedo, g, &mut rng, &mut acc);
+                    let photon = Photon {
+                        origin,
+                        dir,
+                        w,
+                        sun,
+                    };
+                    path(cells, photon, albedo, g, casters, &mut rng, &mut acc);
                 }
             }
             acc
@@ -270,21 +279,45 @@ fn emit(
     (origin, dir, w)
 }
 
-/// One photon's path: the forced first collision, then flights that deposit into `acc` (a
-/// `sun` photon's first one apart).
-#[allow(clippy::too_many_arguments)]
+/// The shadow-casting holdouts the photons' first collisions are checked against, and where
+/// the cells lie in the world (cell `(i, j, k)` centred on `origin + (i, j, k)·h`).
+pub(crate) struct Casters<'a> {
+    /// The holdouts that cast shadows.
+    pub surfaces: &'a Surfaces,
+    /// World position of node `(0, 0, 0)`.
+    pub origin: Vec3A,
+    /// Cell side in world units.
+    pub h: f32,
+}
+
+/// A photon as emitted: start and direction (grid coordinates), weight, from the sun or not.
+struct Photon {
+    origin: Vec3A,
+    dir: Vec3A,
+    w: Vec3A,
+    sun: bool,
+}
+
+/// One photon's path: the forced first collision (dropped where a shadow-casting holdout lies
+/// between it and the light: the roof over the cloud darkens its multiple scattering too; the
+/// later flights do not see holdouts), then flights that deposit into `acc` (a `sun` photon's
+/// first one apart).
 #[inline]
 fn path(
     cells: &Cells,
-    origin: Vec3A,
-    dir: Vec3A,
-    mut w: Vec3A,
-    sun: bool,
+    photon: Photon,
     albedo: f32,
     g: f32,
+    casters: Option<&Casters<'_>>,
     rng: &mut Pcg64Mcg,
     acc: &mut [i64],
 ) {
+    let Photon {
+        origin,
+        dir,
+        mut w,
+        sun,
+    } = photon;
     let Some(start) = cells.entry(origin, dir) else {
         return;
     };
@@ -302,6 +335,12 @@ fn path(
     let Some(mut pos) = flight(cells, start, dir, -(1.0 - u * hit).ln(), |_, _| {}) else {
         return;
     };
+    if let Some(c) = casters {
+        let world = c.origin + (pos - Vec3A::splat(0.5)) * c.h;
+        if c.surfaces.caster_occludes(world, -dir) {
+            return;
+        }
+    }
     let w0 = w.max_element();
     let mut d = dir;
     for n in 0..MAX_COLLISIONS {
