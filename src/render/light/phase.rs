@@ -5,9 +5,14 @@
 //! sphere). Used by the shader (`light/shading.rs`) for the sun and the octaves, and by the sky
 //! cells (`light/sky_cells.rs`).
 //!
+//! Sampling it (the reference path tracer's and the fluence estimate's scattering):
+//! [`sample_cloud_phase`].
+//!
 //! - Henyey & Greenstein (1941), "Diffuse radiation in the galaxy", ApJ 93: the phase function.
 
 use std::f32::consts::PI;
+
+use glam::Vec3A;
 
 /// Henyey–Greenstein phase function `(1 − g²) / (4π (1 + g² − 2gμ)^{3/2})` for the cosine `μ`
 /// between the light's travel direction and the scattered direction. Integrates to 1 over the
@@ -31,6 +36,47 @@ pub const BACK_LOBE_RATIO: f32 = -0.4;
 pub fn cloud_phase(mu: f32, g: f32) -> f32 {
     (1.0 - BACK_LOBE_WEIGHT) * henyey_greenstein(mu, g)
         + BACK_LOBE_WEIGHT * henyey_greenstein(mu, BACK_LOBE_RATIO * g)
+}
+
+/// The cosine `μ` of a Henyey–Greenstein lobe of asymmetry `g` for a uniform `ξ` (the inverse
+/// of its distribution in `μ`, pbrt's form; exact).
+#[inline]
+pub(crate) fn sample_hg_cos(g: f32, xi: f32) -> f32 {
+    if g.abs() < 1e-3 {
+        return 1.0 - 2.0 * xi;
+    }
+    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi);
+    ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+}
+
+/// A travel direction scattered from unit `d` by [`cloud_phase`] with asymmetry `g`, sampled
+/// exactly from three uniforms `[pick, ξ, v]` (the lobe by its weight, its cosine, the
+/// azimuth), and its cosine `μ` to `d` (the density is `cloud_phase(μ, g)`).
+#[inline]
+pub(crate) fn sample_cloud_phase(d: Vec3A, g: f32, [pick, xi, v]: [f32; 3]) -> (Vec3A, f32) {
+    let lobe = if pick < BACK_LOBE_WEIGHT {
+        BACK_LOBE_RATIO * g
+    } else {
+        g
+    };
+    let mu = sample_hg_cos(lobe, xi);
+    let s = (1.0 - mu * mu).max(0.0).sqrt();
+    let phi = 2.0 * PI * v;
+    let (t, b) = basis(d);
+    let dir = (t * (s * phi.cos()) + b * (s * phi.sin()) + d * mu).normalize();
+    (dir, mu)
+}
+
+/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017).
+#[inline]
+pub(crate) fn basis(n: Vec3A) -> (Vec3A, Vec3A) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3A::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 #[cfg(test)]

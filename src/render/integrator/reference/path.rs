@@ -26,7 +26,7 @@ use super::majorant::Majorant;
 use super::tracking::Tracker;
 use crate::render::camera::Ray;
 use crate::render::integrator::march::PixelPasses;
-use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, cloud_phase};
+use crate::render::light::phase::{self, cloud_phase};
 use crate::render::light::shading::Shading;
 use crate::render::light::sky_dome::SkyDome;
 use crate::render::medium::Medium;
@@ -188,49 +188,17 @@ fn uniform_sphere(u: f32, v: f32) -> Vec3A {
     Vec3A::new(r * phi.cos(), r * phi.sin(), z)
 }
 
-/// The cosine `μ` of a Henyey–Greenstein lobe of asymmetry `g` for a uniform `ξ` (the inverse
-/// of its distribution in `μ`, pbrt's form; exact).
-#[inline]
-pub(crate) fn sample_hg_cos(g: f32, xi: f32) -> f32 {
-    if g.abs() < 1e-3 {
-        return 1.0 - 2.0 * xi;
-    }
-    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi);
-    ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
-}
-
-/// A direction scattered from travel direction `d` by the two-lobe [`cloud_phase`] (a lobe
-/// chosen by its weight, then sampled exactly), and its density (the phase function's value).
+/// A direction scattered from travel direction `d` by the two-lobe [`cloud_phase`]
+/// ([`phase::sample_cloud_phase`]), and its density (the phase function's value).
 pub(crate) fn sample_cloud_phase(d: Vec3A, g: f32, rng: &mut Pcg64Mcg) -> (Vec3A, f32) {
-    let (pick, xi, v): (f32, f32, f32) = (rng.random(), rng.random(), rng.random());
-    let lobe = if pick < BACK_LOBE_WEIGHT {
-        BACK_LOBE_RATIO * g
-    } else {
-        g
-    };
-    let mu = sample_hg_cos(lobe, xi);
-    let s = (1.0 - mu * mu).max(0.0).sqrt();
-    let phi = 2.0 * PI * v;
-    let (t, b) = basis(d);
-    let dir = (t * (s * phi.cos()) + b * (s * phi.sin()) + d * mu).normalize();
+    let (dir, mu) = phase::sample_cloud_phase(d, g, [rng.random(), rng.random(), rng.random()]);
     (dir, cloud_phase(mu, g))
-}
-
-/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017).
-#[inline]
-fn basis(n: Vec3A) -> (Vec3A, Vec3A) {
-    let sign = 1.0f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3A::new(b, sign + n.y * n.y * a, -n.y),
-    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, basis};
     use crate::rng::{Stream, item_rng};
 
     /// The sampled cosines follow the two-lobe phase function: a histogram of 400,000 samples

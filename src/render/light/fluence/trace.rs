@@ -29,7 +29,7 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 
 use crate::render::light::fluence::cells::Cells;
-use crate::render::light::phase::{BACK_LOBE_RATIO, BACK_LOBE_WEIGHT};
+use crate::render::light::phase::{self, basis};
 use crate::rng::{Stream, item_rng};
 
 /// Values summed per cell: φ (R, G, B) and F (x, y, z) of the light scattered at least once
@@ -162,38 +162,11 @@ fn r2(k: u32) -> (f32, f32) {
     ((0.5 + A1 * k).fract() as f32, (0.5 + A2 * k).fract() as f32)
 }
 
-/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017).
-#[inline]
-fn basis(n: Vec3A) -> (Vec3A, Vec3A) {
-    let sign = 1.0f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3A::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 /// A new travel direction after scattering from `d` by the cloud's two-lobe phase function
 /// (`phase::cloud_phase` with asymmetry `g`), sampled exactly.
 #[inline]
 fn scatter(d: Vec3A, g: f32, rng: &mut Pcg64Mcg) -> Vec3A {
-    let (lobe, u, v): (f32, f32, f32) = (rng.random(), rng.random(), rng.random());
-    let g = if lobe < BACK_LOBE_WEIGHT {
-        BACK_LOBE_RATIO * g
-    } else {
-        g
-    };
-    let cos = if g.abs() < 1e-3 {
-        1.0 - 2.0 * u
-    } else {
-        let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
-        ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
-    };
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let (t, b) = basis(d);
-    let phi = 2.0 * PI * v;
-    (t * (sin * phi.cos()) + b * (sin * phi.sin()) + d * cos).normalize()
+    phase::sample_cloud_phase(d, g, [rng.random(), rng.random(), rng.random()]).0
 }
 
 /// Trace every photon of `sources` through `cells` with single-scattering `albedo` and phase
