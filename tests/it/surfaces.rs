@@ -12,9 +12,8 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3, Vec3A};
 use nephele::blobby::Blob;
 use nephele::render::{
-    BlobMedium, Camera, CameraRays, CloudMaterial, Film, Frame, FrameOptions, FrameRenderer,
-    Frustum, Ground, HoldoutMesh, IdMattes, Mattes, Medium, Quality, RenderSettings, Sky, Sun,
-    Surfaces,
+    Camera, CameraRays, CloudMaterial, Film, Frame, FrameOptions, FrameRenderer, Ground,
+    HoldoutMesh, IdMattes, Mattes, Quality, RenderSettings, Sky, Sun, Surfaces,
 };
 use nephele::scene;
 
@@ -466,8 +465,11 @@ fn the_shadow_pass_matches_a_march_through_the_exported_vdb() {
         "the cloud's shadow is on the ground ({dark} pixels)"
     );
     let dir = temp_dir("surfaces-shadow-vdb");
-    // The default export's voxel (the diagonal / 512: the cloud's soft edge four voxels wide).
-    let voxel = s.length_scale as f64 / 512.0;
+    // Half the default export's voxel (the diagonal / 1024): at the default (/ 512) the cloud's
+    // soft edge is four voxels wide and OpenVDB's trilinear reconstruction widens it, so rays
+    // grazing it differed by up to 0.035 (4 of 5,184 pixels) — the grid's error, which halves
+    // with the voxel; at / 1024 every pixel is within 0.012.
+    let voxel = s.length_scale as f64 / 1024.0;
     let grid = nephele::export::frame_grid(&s, &cloud(), voxel).unwrap();
     let vdb = dir.join("cloud.vdb");
     nephele::export::write_vdb(&vdb, &grid, nephele::export::GRID_NAME, 1).unwrap();
@@ -475,22 +477,6 @@ fn the_shadow_pass_matches_a_march_through_the_exported_vdb() {
         return;
     };
     assert_eq!(marched.len(), pixels.len());
-    // Where OpenVDB's trilinear grid and the renderer differ by more than 0.02 (rays grazing
-    // the cloud's soft edge, four voxels wide, which the grid's reconstruction widens), the
-    // shadow pass must be the renderer's own density marched point by point (a tenth of a
-    // voxel apart) — the grid's error, not the pass's.
-    let medium = BlobMedium::new(&s, &cloud());
-    let mut scratch = medium.scratch();
-    let mut exact = |p: Vec3A| {
-        let h = 0.1 * voxel as f32;
-        let mut tau = 0.0;
-        for k in 0..(4.0 / h) as usize {
-            medium.begin_tile(&Frustum::EVERYTHING, &mut scratch);
-            let q = p + to_sun * ((k as f32 + 0.5) * h);
-            tau += nephele::export::grid::point_extinction(&medium, &mut scratch, q) * h;
-        }
-        (-tau).exp()
-    };
     let (mut worst, mut sum, mut outside) = (0.0f32, 0.0f32, 0);
     for ((&i, &t), p) in pixels.iter().zip(&marched).zip(&ground) {
         let e = (shadow[i] - t).abs();
@@ -498,16 +484,7 @@ fn the_shadow_pass_matches_a_march_through_the_exported_vdb() {
         sum += e;
         if e > 0.02 {
             outside += 1;
-            let x = exact(*p);
-            eprintln!(
-                "pixel {i}: shadow {} vs OpenVDB {t}, the renderer's density point by point {x}",
-                shadow[i]
-            );
-            assert!(
-                (shadow[i] - x).abs() <= 0.01,
-                "pixel {i}: {} vs {x}",
-                shadow[i]
-            );
+            eprintln!("pixel {i} at {p}: shadow {} vs OpenVDB {t}", shadow[i]);
         }
     }
     eprintln!(
@@ -516,11 +493,7 @@ fn the_shadow_pass_matches_a_march_through_the_exported_vdb() {
         pixels.len(),
         sum / pixels.len() as f32
     );
-    assert!(
-        outside * 1000 <= pixels.len(),
-        "{outside} pixels beyond 0.02"
-    );
-    assert!(worst <= 0.05, "max error {worst}");
+    assert_eq!(outside, 0, "{outside} pixels beyond 0.02 (max {worst})");
 }
 
 /// `tools/shadow_march.py` on `vdb` from `points`; `None` (after saying why) without pyopenvdb.
