@@ -36,6 +36,16 @@ class NepheleAddonPreferences(bpy.types.AddonPreferences):
         self.layout.prop(self, "binary")
 
 
+#: The scene file's `quality` levels (scenes/README.md "Quality"), cheapest first.
+QUALITIES = [
+    ("Preview", "Preview", "Fast drafts: coarse light grid, multiple scattering by octaves"),
+    ("Final", "Final", "The shot's look: fine light grid, multiple scattering from photons"),
+    ("Production", "Production", "Final with finer steps and light grid (slower)"),
+    ("Reference", "Reference", "A path tracer through the same density (slow): checks a "
+     "shot's light against the march"),
+]
+
+
 class OBJECT_OT_nephele_cloud(bpy.types.Operator):
     """Fit the active mesh with nephele, render its cloud shot to VDB frames and import them"""
 
@@ -54,8 +64,7 @@ class OBJECT_OT_nephele_cloud(bpy.types.Operator):
                            "(motion blur in nephele and in Blender)", default=0.5, min=0.0, max=1.0)
     voxels: IntProperty(name="Voxels across", description="Grid voxels across the mesh's "
                         "bounding-box diagonal", default=256, min=16, max=1024)
-    quality: EnumProperty(name="Quality", items=[(q, q, "") for q in ("Preview", "Final", "Production")],
-                          default="Preview")
+    quality: EnumProperty(name="Quality", default="Preview", items=QUALITIES)
     camera_source: EnumProperty(name="Camera", default="AUTO", items=[
         ("AUTO", "Scene camera if any", "The scene's camera when it has one, else nephele's"),
         ("SCENE", "Scene camera", "nephele renders the scene's camera on every frame (its "

@@ -57,7 +57,7 @@ class ShotSettings:
     width: int = 640
     height: int = 360
     shutter: float = 0.5
-    quality: str = "Final"  # Preview, Final or Production (the scene file's `quality`)
+    quality: str = "Final"  # Preview, Final, Production or Reference (the scene file's `quality`)
     voxels_per_diagonal: int = 256
     seed: int = 1
     fit_samples: Optional[int] = None

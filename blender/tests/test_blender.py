@@ -312,6 +312,32 @@ def test_addon_registers_its_operator():
         nephele_blender.unregister()
 
 
+def test_every_quality_in_the_menu_renders(shot, tmp_path):
+    """Each level of the operator's Quality menu is one nephele renders: the shot's scene file
+    with that `quality` renders its last frame (its EXR written, the cloud in its alpha)."""
+    import re
+
+    _, _, _, out, _ = shot
+    scene = next(out.glob("*.ron"))
+    text = scene.read_text()
+    assert "quality: Preview," in text
+    names = [q for q, _, _ in nephele_blender.QUALITIES]
+    assert names == ["Preview", "Final", "Production", "Reference"], names
+    for q in names:
+        folder = tmp_path / q
+        folder.mkdir()
+        variant = scene.with_name(f"quality-{q}.ron")
+        text_q = re.sub(r'dir: "[^"]*"', f'dir: "{folder}"', text.replace("quality: Preview,", f"quality: {q},"))
+        assert f'dir: "{folder}"' in text_q
+        variant.write_text(text_q)
+        core.render(variant, nephele_bin(), frames="3", use_module=False)
+        exrs = list(folder.glob("*.exr"))
+        assert len(exrs) == 1, (q, sorted(p.name for p in folder.iterdir()))
+        alpha = load_rgba(exrs[0])[..., 3]
+        print(f"quality {q}: alpha sum {alpha.sum():.2f}")
+        assert alpha.max() > 0.05, (q, alpha.max())
+
+
 def test_install_py_works_with_the_bpy_wheel_alone(tmp_path):
     """`python blender/install.py` with a Python that has the bpy wheel and no `blender`
     executable installs and enables the add-on in Blender's user folders."""
