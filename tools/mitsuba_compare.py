@@ -20,6 +20,15 @@ Mitsuba renders the same camera, sun (directional, same irradiance) and sky (env
 `volpath`: `max_depth` 2 (single scattering) and 64 (full transport), each twice with
 different seeds so that the reference's own noise can be measured and excluded.
 
+The cloud's two-lobe phase function is `TwoLobe` (`register_two_lobe`), not Mitsuba's `blendphase`: in
+Mitsuba 3.6.4 `blendphase.sample` returns the pdf of the lobe it picked instead of the
+mixture's, so the MIS weights between the phase sample and the envmap's sample do not sum to
+one and every sky-lit order comes out too bright (a semi-infinite slab under a constant sky,
+single scattering, against the closed form `a ∫ p(d·l) μ_l/(μ_l + μ_v) dl`: 1.39× seen from
+above, 1.32× at 45°, 1.20× at 70°; each `hg` alone, and `TwoLobe`, within 1.2 %; the sun, a
+delta light without MIS, is not affected). `--blendphase` renders with Mitsuba's own, for
+comparing with references made before.
+
 Output (stdout, JSON):
   ss_rel_rmse       relative RMSE of nephele's single scattering against Mitsuba's (linear
                     luminance over the cloud's pixels), the reference's noise excluded
@@ -43,7 +52,8 @@ Output (stdout, JSON):
   seconds_*         render times (nephele's from meta.json)
 With --picture PATH: a 2×2 sheet (nephele SS | Mitsuba SS / nephele MS | Mitsuba full).
 
-Usage: python3 tools/mitsuba_compare.py DIR [--spp 256] [--picture out.png]
+Usage: python3 tools/mitsuba_compare.py DIR [--spp 256] [--picture out.png] [--blendphase]
+       python3 tools/mitsuba_compare.py --check-phase   (the slab check above, as JSON)
 Needs `pip install mitsuba numpy`; uses the `llvm_ad_rgb` variant when its kernels compile on
 this machine (tried in a child process, see `pick_variant`), else `scalar_rgb` (same image,
 slower).
@@ -56,7 +66,11 @@ import sys
 import time
 
 import numpy as np
+import drjit as dr
 import mitsuba as mi
+
+# Set by --blendphase: Mitsuba's own `blendphase` instead of `TwoLobe` (module doc).
+BLENDPHASE = False
 
 
 # A 4×4 render through a grid medium: the kernels a comparison needs.
@@ -76,6 +90,122 @@ mi.render(mi.load_dict({
 """
 
 
+def register_two_lobe():
+    """Register `twolobe` (the class below) with the variant set (Mitsuba's Python plugins bind
+    to the variant, so this runs after `mi.set_variant`)."""
+
+    class TwoLobe(mi.PhaseFunction):
+        """The cloud's phase function `(1 − w)·HG(μ, g1) + w·HG(μ, g2)` (nephele's
+        `render::phase::cloud_phase`), sampled by lobe like `blendphase` but returning the
+        mixture's pdf, which the integrators' MIS needs (see the module doc)."""
+
+        def __init__(self, props):
+            mi.PhaseFunction.__init__(self, props)
+            self.w = props.get("weight", 0.2)
+            self.g1 = props.get("g1", 0.75)
+            self.g2 = props.get("g2", -0.3)
+            self.m_flags = mi.PhaseFunctionFlags.Anisotropic
+            self.m_components = [mi.PhaseFunctionFlags.Anisotropic]
+
+        @staticmethod
+        def hg(cos_theta, g):
+            # Mitsuba's convention: cos_theta between wo and wi (wi points back along the ray).
+            temp = 1.0 + g * g + 2.0 * g * cos_theta
+            return dr.inv_four_pi * (1.0 - g * g) / (temp * dr.sqrt(temp))
+
+        def mix(self, cos_theta):
+            return (1.0 - self.w) * self.hg(cos_theta, self.g1) + self.w * self.hg(cos_theta, self.g2)
+
+        def eval_pdf(self, ctx, mei, wo, active=True):
+            p = self.mix(dr.dot(wo, mei.wi))
+            return mi.Spectrum(p), p
+
+        def sample(self, ctx, mei, sample1, sample2, active=True):
+            # The lobe by its weight, then its cosine exactly (as Mitsuba's `hg` samples).
+            g = dr.select(sample1 < self.w, self.g2, self.g1)
+            sqr_term = (1.0 - g * g) / (1.0 - g + 2.0 * g * sample2.x)
+            cos_theta = (1.0 + g * g - sqr_term * sqr_term) / (2.0 * g)
+            sin_theta = dr.safe_sqrt(1.0 - cos_theta * cos_theta)
+            s, c = dr.sincos(2.0 * dr.pi * sample2.y)
+            wo = mei.to_world(mi.Vector3f(sin_theta * s, sin_theta * c, -cos_theta))
+            return wo, mi.Spectrum(1.0), self.mix(-cos_theta)
+
+        def to_string(self):
+            return f"TwoLobe[weight={self.w}, g1={self.g1}, g2={self.g2}]"
+
+    mi.register_phasefunction("twolobe", lambda props: TwoLobe(props))
+
+
+def phase_dict(meta, blendphase=False):
+    """The cloud's phase function for Mitsuba: `TwoLobe`, or (`blendphase`) Mitsuba's own
+    `blendphase` of two `hg` lobes, biased under MIS in 3.6.4 (module doc)."""
+    g, w, ratio = meta["g"], meta["back_weight"], meta["back_ratio"]
+    if blendphase:
+        return {
+            "type": "blendphase",
+            "weight": w,
+            "phase1": {"type": "hg", "g": g},
+            "phase2": {"type": "hg", "g": g * ratio},
+        }
+    return {"type": "twolobe", "weight": w, "g1": g, "g2": g * ratio}
+
+
+def check_phase(spp=4096):
+    """Mitsuba's single scattering (`volpath`, `max_depth` 2) of a semi-infinite homogeneous
+    slab (σ_t 2, albedo 0.95) under a constant sky of radiance 1, seen from 0°, 45° and 70° off
+    its normal (an 8×8-pixel, 2° view of its surface), over the closed form
+    `a ∫_{l·n > 0} p(d·l) μ_l/(μ_l + μ_v) dl` (a 2,000 × 2,000 midpoint sum), with `TwoLobe`
+    and with Mitsuba's `blendphase`: {"twolobe": [..], "blendphase": [..]} (1 = exact)."""
+    T = mi.ScalarTransform4f
+    meta = {"g": 0.75, "back_weight": 0.2, "back_ratio": -0.4}
+    a, sigma = 0.95, 2.0
+
+    def hg(mu, g):
+        d = 1.0 + g * g - 2.0 * g * mu
+        return (1.0 - g * g) / (4.0 * np.pi * d**1.5)
+
+    def closed(mv):
+        n = 2000
+        mu = (np.arange(n) + 0.5) / n
+        phi = (np.arange(n) + 0.5) / n * 2.0 * np.pi
+        m, p = np.meshgrid(mu, phi, indexing="ij")
+        # The view travels down at cos mv; l toward the sky at cos m to the normal.
+        c = np.sqrt(1.0 - mv * mv) * np.sqrt(1.0 - m * m) * np.cos(p) - mv * m
+        phase = 0.8 * hg(c, 0.75) + 0.2 * hg(c, -0.3)
+        return a * float(np.sum(phase * m / (m + mv))) * (2.0 * np.pi) / (n * n)
+
+    def render(view_deg, blendphase):
+        th = np.radians(view_deg)
+        eye = [-5.0 * float(np.sin(th)), 5.0 * float(np.cos(th)), 0.0]
+        scene = mi.load_dict({
+            "type": "scene",
+            "integrator": {"type": "volpath", "max_depth": 2},
+            "sensor": {
+                "type": "perspective",
+                "fov": 2.0,
+                "to_world": T().look_at(origin=eye, target=[0, 0, 0], up=[0, 0, 1]),
+                "film": {"type": "hdrfilm", "width": 8, "height": 8,
+                         "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+                "sampler": {"type": "independent", "sample_count": spp},
+            },
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1, 1, 1]}},
+            "slab": {
+                "type": "cube",
+                "bsdf": {"type": "null"},
+                "to_world": T().translate([0, -15, 0]).scale([200, 15, 200]),
+                "interior": {"type": "homogeneous", "albedo": a, "sigma_t": sigma,
+                             "phase": phase_dict(meta, blendphase)},
+            },
+        })
+        return float(np.array(mi.render(scene, spp=spp))[..., 1].mean())
+
+    views = (0, 45, 70)
+    out = {"views_deg": list(views)}
+    for name, blend in (("twolobe", False), ("blendphase", True)):
+        out[name] = [round(render(v, blend) / closed(np.cos(np.radians(v))), 4) for v in views]
+    return out
+
+
 def pick_variant():
     """`llvm_ad_rgb` when its kernels compile here, else `scalar_rgb` (same image, slower).
 
@@ -85,6 +215,7 @@ def pick_variant():
     probe = subprocess.run([sys.executable, "-c", PROBE], capture_output=True)
     variant = "llvm_ad_rgb" if probe.returncode == 0 else "scalar_rgb"
     mi.set_variant(variant)
+    register_two_lobe()
     return variant
 
 
@@ -120,7 +251,6 @@ def sky_emitter(meta, sky):
 def scene_dict(meta, vol, sky, max_depth, spp, seed):
     T = mi.ScalarTransform4f
     grid, lo, hi = vol
-    g = meta["g"]
     return {
         "type": "scene",
         "integrator": {"type": "volpath", "max_depth": max_depth},
@@ -159,12 +289,7 @@ def scene_dict(meta, vol, sky, max_depth, spp, seed):
                     "grid": mi.VolumeGrid(grid),
                     "to_world": T().translate(lo.tolist()).scale((hi - lo).tolist()),
                 },
-                "phase": {
-                    "type": "blendphase",
-                    "weight": meta["back_weight"],
-                    "phase1": {"type": "hg", "g": g},
-                    "phase2": {"type": "hg", "g": g * meta["back_ratio"]},
-                },
+                "phase": phase_dict(meta, BLENDPHASE),
             },
         },
     }
@@ -237,7 +362,12 @@ def reference_comparison(d, shape, full, cloud):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("dir")
+    ap.add_argument("dir", nargs="?")
+    ap.add_argument(
+        "--check-phase",
+        action="store_true",
+        help="only check the phase function against a slab's closed form (check_phase)",
+    )
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--picture")
     ap.add_argument(
@@ -246,8 +376,20 @@ def main():
         help="reuse Mitsuba renders saved in DIR by an earlier run (same grid and spp)",
     )
     ap.add_argument("--only-ss", action="store_true", help="single scattering only")
+    ap.add_argument(
+        "--blendphase",
+        action="store_true",
+        help="Mitsuba's own blendphase (biased under MIS in 3.6.4), as references made before",
+    )
     args = ap.parse_args()
+    global BLENDPHASE
+    BLENDPHASE = args.blendphase
     variant = pick_variant()
+    if args.check_phase:
+        print(json.dumps({"variant": variant, **check_phase()}, indent=1))
+        return
+    if args.dir is None:
+        ap.error("DIR is needed (all but --check-phase)")
     meta = json.load(open(os.path.join(args.dir, "meta.json")))
     w, h = meta["width"], meta["height"]
     grid = read_vol(os.path.join(args.dir, "grid.vol"))
@@ -263,7 +405,10 @@ def main():
     for name, depth in (("ss", 2), ("full", 64))[: 1 if args.only_ss else 2]:
         pair, times = [], []
         for seed in (1, 2):
-            path = os.path.join(args.dir, f"mitsuba_{name}_{args.spp}spp_seed{seed}.f32")
+            # Renders with Mitsuba's `blendphase` keep the names they had; `TwoLobe`'s are
+            # marked, so that --reuse never mixes the two.
+            tag = "" if args.blendphase else "_twolobe"
+            path = os.path.join(args.dir, f"mitsuba_{name}_{args.spp}spp_seed{seed}{tag}.f32")
             if args.reuse and os.path.exists(path):
                 img, t = load(args.dir, os.path.basename(path), (h, w, 3)), float("nan")
             else:

@@ -27,6 +27,13 @@
 //! the script compares it with Mitsuba's full transport (`ref_*` keys; with
 //! `NEPHELE_MITSUBA_REFERENCE_DEPTH=2`, single scattering against Mitsuba's `max_depth` 2).
 //!
+//! The phase function Mitsuba renders with is the script's `TwoLobe`, not Mitsuba's
+//! `blendphase`: Mitsuba 3.6.4's `blendphase` returns the picked lobe's pdf from `sample`, so
+//! its MIS with the envmap over-counts the sky's light (a slab under a constant sky: 1.20–1.39×
+//! the closed form; `tools/mitsuba_compare.py`'s doc). Figures measured before 2026-12-06
+//! evening were against that biased reference; `NEPHELE_MITSUBA_BLENDPHASE` renders with it
+//! again (and reuses the renders made with it).
+//!
 //! The plate's light (`environment_single_scattering_matches_mitsuba`, always run): a test EXR
 //! as the sky, the same file for Mitsuba's `envmap`. `NEPHELE_MITSUBA_ENV_SIZE=640` runs it at
 //! 640×360, `NEPHELE_MITSUBA_ENV_CELLS` leaves the bright patch in the sky cells (no
@@ -143,7 +150,15 @@ fn write_inputs(
     grid_res: u32,
     dir: &Path,
 ) -> (f64, f64) {
-    write_inputs_with(scene, frame, size, grid_res, dir, &|_| {})
+    write_inputs_with(
+        scene,
+        frame,
+        size,
+        grid_res,
+        dir,
+        reference_from_env(),
+        &|_| {},
+    )
 }
 
 /// [`write_inputs`] with the frame's settings changed by `adjust` (an `Environment` sky is
@@ -154,6 +169,7 @@ fn write_inputs_with(
     size: (u32, u32),
     grid_res: u32,
     dir: &Path,
+    reference: Option<(u32, u32)>,
     adjust: &dyn Fn(&mut RenderSettings),
 ) -> (f64, f64) {
     let mut scene = load_scene(scene).unwrap();
@@ -267,11 +283,8 @@ fn write_inputs_with(
         render_medium(&s, &dense, &lights, &Film::default())
     };
     write_f32(&dir.join("nephele_grid_ss.f32"), composite(&s, &same_grid));
-    if let Some(spp) = std::env::var("NEPHELE_MITSUBA_REFERENCE")
-        .ok()
-        .and_then(|v| v.parse().ok())
-    {
-        write_reference(&s, &blobs, &dense, spp, dir);
+    if let Some((spp, max_depth)) = reference {
+        write_reference(&s, &blobs, &dense, spp, max_depth, dir);
     }
     // The sky map's texels no larger than the frame's pixels: Mitsuba interpolates the map
     // bilinearly, and a 256-row map blurred the horizon over ±7 pixels at 640×360 — behind the
@@ -322,7 +335,22 @@ fn write_inputs_with(
     (times[0], times[1])
 }
 
-/// Nephele's `quality: Reference` of the frame (the path tracer, max depth 64, `spp` paths a
+/// `NEPHELE_MITSUBA_REFERENCE=spp` (and `NEPHELE_MITSUBA_REFERENCE_DEPTH`, default 64): the
+/// Reference render [`write_inputs`] adds, `(spp, max_depth)`.
+fn reference_from_env() -> Option<(u32, u32)> {
+    let spp = std::env::var("NEPHELE_MITSUBA_REFERENCE")
+        .ok()?
+        .parse()
+        .ok()?;
+    // NEPHELE_MITSUBA_REFERENCE_DEPTH=2: single scattering, against Mitsuba's `max_depth` 2.
+    let max_depth = std::env::var("NEPHELE_MITSUBA_REFERENCE_DEPTH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    Some((spp, max_depth))
+}
+
+/// Nephele's `quality: Reference` of the frame (the path tracer, `max_depth`, `spp` paths a
 /// pixel), composited over the sky as the other frames: through the blobs' own density
 /// (`nephele_ref.f32`, a second path seed `nephele_ref2.f32`) and through the exported grid
 /// Mitsuba renders (`nephele_grid_ref.f32`, `nephele_grid_ref2.f32`: the light transport
@@ -332,16 +360,12 @@ fn write_reference(
     blobs: &[nephele::blobby::Blob],
     dense: &grid_medium::DenseGrid,
     spp: u32,
+    max_depth: u32,
     dir: &Path,
 ) {
     let mut s = s.clone();
     s.cloud.multiple_scattering = true;
     let medium = BlobMedium::new(&s, blobs);
-    // NEPHELE_MITSUBA_REFERENCE_DEPTH=2: single scattering, against Mitsuba's `max_depth` 2.
-    let max_depth = std::env::var("NEPHELE_MITSUBA_REFERENCE_DEPTH")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(64);
     let mut record = format!(r#"{{"max_depth": {max_depth}, "#);
     for (name, seed) in [("ref", 0), ("ref2", 1)] {
         s.quality.reference = Some(PathTracing {
@@ -401,6 +425,11 @@ fn compare_with(
     if only_ss || std::env::var("NEPHELE_MITSUBA_ONLY_SS").is_ok() {
         cmd.arg("--only-ss");
     }
+    // Mitsuba's own `blendphase` (biased under MIS in 3.6.4: the module doc), to reproduce
+    // figures measured before the script's `TwoLobe`.
+    if std::env::var("NEPHELE_MITSUBA_BLENDPHASE").is_ok() {
+        cmd.arg("--blendphase");
+    }
     let out = cmd.output().unwrap();
     assert!(
         out.status.success(),
@@ -435,21 +464,24 @@ fn single_scattering_matches_mitsuba() {
     let json = compare(&py, &dir, 64, None, false);
     eprintln!("{json}");
     // A small run (160×90, a 96-cell grid, 64 spp; the full one, docs/MEASUREMENTS.md, gives
-    // the quoted figures). On the billowy density it measures end to end 0.106, same grid
-    // 0.018, mean ratio 1.024 (MS luminance 0.640 vs 0.679, base/top 0.732 vs 0.723; Mitsuba
-    // 3.6.4): at 160×90 one ray a pixel point-samples billows Mitsuba's box filter averages,
-    // most of the end-to-end figure. The bars leave room for the reference's noise and catch a
-    // regression of the light model (before the sky cells this run measured 0.205).
+    // the quoted figures). On the billowy density, against Mitsuba with the script's
+    // `TwoLobe` phase function, it measures end to end 0.120, same grid 0.054, mean ratio
+    // 1.047 (full image 0.114 per pixel, mean 1.004; MS luminance 0.698 vs 0.677, base/top
+    // 0.737 vs 0.711; Mitsuba 3.6.4). Against the biased `blendphase` it had read 0.106,
+    // 0.018, 1.024: the march's sky term is a few per cent bright. At 160×90 one ray a pixel
+    // point-samples billows Mitsuba's box filter averages, most of the end-to-end figure. The
+    // bars leave room for the reference's noise and catch a regression of the light model
+    // (before the sky cells this run measured 0.205).
     let rmse = number(&json, "ss_rel_rmse");
     assert!(
-        rmse < 0.12,
+        rmse < 0.15,
         "single scattering differs from Mitsuba by {rmse}"
     );
     let same = number(&json, "ss_same_grid_rel_rmse");
     assert!(same < 0.07, "same-grid single scattering differs by {same}");
     let ratio = number(&json, "ss_mean_ratio");
     assert!(
-        (ratio - 1.0).abs() < 0.05,
+        (ratio - 1.0).abs() < 0.07,
         "single scattering mean ratio {ratio}"
     );
     let (ms, full) = (
@@ -466,6 +498,39 @@ fn single_scattering_matches_mitsuba() {
     );
     assert!((bt - bt_full).abs() < 0.1, "base/top {bt} vs {bt_full}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The phase function Mitsuba renders with (`tools/mitsuba_compare.py --check-phase`): single
+/// scattering of a semi-infinite slab under a constant sky, `volpath` at `max_depth` 2, against
+/// the closed form at 0°, 45° and 70° from its normal. Measured 0.988, 0.992, 0.998 with the
+/// script's `TwoLobe`; Mitsuba 3.6.4's own `blendphase` 1.393, 1.316, 1.200 (its MIS bias; the
+/// reason for `TwoLobe`). Every comparison in this file is only as good as this.
+#[test]
+fn mitsuba_phase_function_matches_the_closed_form() {
+    let Some(py) = python() else {
+        return;
+    };
+    let out = Command::new(&py)
+        .arg(repo().join("tools/mitsuba_compare.py"))
+        .arg("--check-phase")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "mitsuba_compare.py --check-phase failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json = String::from_utf8_lossy(&out.stdout).into_owned();
+    eprintln!("{json}");
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    for (k, r) in v["twolobe"].as_array().unwrap().iter().enumerate() {
+        let r = r.as_f64().unwrap();
+        assert!(
+            (r - 1.0).abs() < 0.03,
+            "view {}: Mitsuba's single scattering over the closed form {r}",
+            v["views_deg"][k]
+        );
+    }
 }
 
 /// The plate's light: a non-uniform lat-long EXR written by the test (a gradient sky over a
@@ -507,6 +572,9 @@ fn environment_single_scattering_matches_mitsuba() {
         size,
         cells,
         &dir,
+        // nephele's Reference at max depth 2 as well, the independent check of the set-up
+        // (64 paths a pixel, or NEPHELE_MITSUBA_REFERENCE's).
+        Some((reference_from_env().map_or(64, |(spp, _)| spp), 2)),
         &|s| {
             s.sky = nephele::render::Sky::Environment(env.clone());
             // Diagnosis: the same light from an analytic sky (through sky.f32 for Mitsuba).
@@ -529,22 +597,41 @@ fn environment_single_scattering_matches_mitsuba() {
     );
     let json = compare_with(&py, &dir, 256, None, false, true);
     eprintln!("{json}\n(inputs in {})", dir.display());
-    // The goal was 5 % per pixel; measured (docs/MEASUREMENTS.md, "The plate's light"): same
-    // grid 0.070 (0.086 with the delta part in the cells around the ray, 0.13 with it along the
-    // ray; the cells are now weighted per view by the whole phase function,
-    // `light/sky_view.rs`), end to end 0.146, mean ratio 1.057, background 0.001. The bars
-    // leave room for the reference's noise at 256 spp (0.09) and catch a regression (the
-    // earlier weights: 0.086; the map turned the other way for Mitsuba: same grid 0.31, end to
-    // end 0.26, mean 0.78).
+    // Measured (docs/MEASUREMENTS.md, "The plate's light"), against Mitsuba with the
+    // script's `TwoLobe` (the `blendphase` it used before over-counted the sky by 12–16 % on
+    // this shot): nephele's Reference at max depth 2 — its own estimator of the same light, the
+    // map sampled uniformly with MIS — same grid 0.994 in the mean, within both noises per
+    // pixel (0.000; 0.14 and 0.09 noise), through the blobs 0.983 and 3.7 %. These check the
+    // set-up (map convention, rotation, intensity, the sun split off it, the grid) tightly
+    // (the map turned the other way for Mitsuba had moved the march's mean by 0.78×).
+    let ref_same = number(&json, "ref_same_grid_rel_rmse");
+    assert!(
+        ref_same < 0.05,
+        "Reference, same grid, per pixel {ref_same}"
+    );
+    let ref_same_ratio = number(&json, "ref_same_grid_mean_ratio");
+    assert!(
+        (ref_same_ratio - 1.0).abs() < 0.04,
+        "Reference, same grid, mean ratio {ref_same_ratio}"
+    );
+    let ref_ratio = number(&json, "ref_mean_ratio");
+    assert!(
+        (ref_ratio - 1.0).abs() < 0.05,
+        "Reference through the blobs, mean ratio {ref_ratio}"
+    );
+    // The march (`Final`) is too bright under this sky (the goal is 5 % per pixel): same grid
+    // 0.132 (mean 1.115), end to end 0.275 (mean 1.224) at 160×90; the light grid's sky depths
+    // let through more than exact depths do (docs/MEASUREMENTS.md). The bars hold those
+    // figures × 1.2 and the background.
     let same = number(&json, "ss_same_grid_rel_rmse");
-    assert!(same < 0.08, "same-grid single scattering differs by {same}");
+    assert!(same < 0.16, "same-grid single scattering differs by {same}");
     let rmse = number(&json, "ss_rel_rmse");
     assert!(
-        rmse < 0.18,
+        rmse < 0.33,
         "single scattering differs from Mitsuba by {rmse}"
     );
     let ratio = number(&json, "ss_mean_ratio");
-    assert!((ratio - 1.0).abs() < 0.08, "mean ratio {ratio}");
+    assert!((ratio - 1.0).abs() < 0.27, "mean ratio {ratio}");
     let bg = number(&json, "background_rel_error");
     assert!(bg < 0.01, "the background differs by {bg}");
     // NEPHELE_MITSUBA_KEEP: leave the folder for `tools/mitsuba_compare.py --reuse`.

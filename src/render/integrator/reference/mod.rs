@@ -13,6 +13,8 @@
 //!   uniformly, MIS with the phase function's sample by the power heuristic), the two-lobe
 //!   phase function sampled exactly, Russian roulette — and its light by order: the `sun` and
 //!   `sky` passes hold single scattering, `multiple` every order ≥ 2.
+//! - `quadrature.rs` (tests): the single scattering checked against a deterministic quadrature
+//!   of the same integral (no tracking, no MIS), sun and sky within 0.2 %.
 //!
 //! What a frame is: the march's ([`render_film`]: tiles in parallel, the film's window and
 //! passes), each pixel the mean of `samples` paths through random points of the pixel (a box
@@ -26,6 +28,9 @@
 mod majorant;
 mod path;
 mod tracking;
+
+#[cfg(test)]
+mod quadrature;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
