@@ -29,13 +29,19 @@
 //! it lost silhouette IoU (docs/MEASUREMENTS.md, "Bending"; `A`, `B` scale a blob's field alike
 //! in every direction, while a bend presses one side of it and pulls the other).
 //!
+//! [`Deformation::with_shape_refit`] ([`shape`]) re-stretches instead a blob's axes where the
+//! anchors spread more (or less) than the affine map says; measured, it gains 0.001–0.002 of
+//! IoU on both shapes, so shots do not use it either.
+//!
 //! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob (and,
 //! with the refit, a lerp of two factors per blob; no solve, no search): tens of microseconds
 //! for a few hundred blobs.
 
 pub mod refit;
+pub mod shape;
 
 pub use refit::{RefitConfig, RefitSummary};
+pub use shape::ShapeCorrection;
 
 use std::collections::HashMap;
 
@@ -124,6 +130,11 @@ pub struct Deformation {
     refit: Vec<Vec<[f64; 2]>>,
     /// What the refit did.
     summary: RefitSummary,
+    /// Per frame of the sequence, per blob, the shape refit's correction of the carry (empty
+    /// unless made by [`Deformation::with_shape_refit`] and some blob is corrected).
+    shape: Vec<Vec<ShapeCorrection>>,
+    /// (blob, frame) pairs the shape refit corrects.
+    shaped: usize,
 }
 
 impl Deformation {
@@ -190,7 +201,29 @@ impl Deformation {
             blobs,
             refit: Vec::new(),
             summary: RefitSummary::default(),
+            shape: Vec::new(),
+            shaped: 0,
         }
+    }
+
+    /// [`Deformation::new`] with the shape refit where the surface leaves the blobs
+    /// ([`shape`]: the anchors' spread mapped instead of their least-squares affine map; `cfg`'s
+    /// `from`, `full` say where), made now on every frame of `frames`. Measured, not used by
+    /// shots (docs/MEASUREMENTS.md, "Bending").
+    pub fn with_shape_refit(
+        formed: &[Blob],
+        frames: &[Vec<DVec3>],
+        times: &[f64],
+        cfg: &RefitConfig,
+    ) -> Deformation {
+        let mut d = Deformation::new(formed, frames, times);
+        (d.shape, d.shaped) = shape::corrections(&d, formed, frames.len(), cfg);
+        d
+    }
+
+    /// (blob, frame) pairs the shape refit corrects (0 without it).
+    pub fn shape_refitted(&self) -> usize {
+        self.shaped
     }
 
     /// [`Deformation::new`] with the local refit of `A`, `B` where the surface leaves the
@@ -217,6 +250,8 @@ impl Deformation {
         Deformation {
             refit: Vec::new(),
             summary: RefitSummary::default(),
+            shape: Vec::new(),
+            shaped: 0,
             ..self.clone()
         }
     }
@@ -333,7 +368,13 @@ impl Deformation {
     pub fn apply(&self, blobs: &mut [Blob], t: f64) {
         let (a, b, u) = self.bracket(t);
         for (i, blob) in blobs.iter_mut().enumerate().take(self.blobs.len()) {
-            self.map_between(i, a, b, u).carry(blob);
+            let mut map = self.map_between(i, a, b, u);
+            if let (Some(sa), Some(sb)) = (self.shape.get(a), self.shape.get(b)) {
+                let (p, q) = (sa[i], sb[i]);
+                map.linear += p.linear + (q.linear - p.linear) * u;
+                map.displacement += p.shift + (q.shift - p.shift) * u;
+            }
+            map.carry(blob);
             if !self.refit.is_empty() {
                 let [ka, kb] = self.factors_between(i, a, b, u);
                 blob.a *= ka;

@@ -190,7 +190,7 @@ pub(super) fn factors(
 
 /// The refit's weight of a blob whose anchors leave their affine map by `leave` (a fraction
 /// of its smallest semi-axis): 0 up to `from`, 1 from `full` on, smoothstep between.
-fn weight(leave: f64, cfg: &RefitConfig) -> f64 {
+pub(super) fn weight(leave: f64, cfg: &RefitConfig) -> f64 {
     if !(leave > cfg.from) {
         return 0.0;
     }

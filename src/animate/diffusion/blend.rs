@@ -111,7 +111,11 @@ impl BlendPath {
     /// order) against `volume(t, detail, fitted)`: a frame inside the blend whose volume would
     /// fall below the frame before's keeps a lower fitted progress — halfway back to the frame
     /// before's, else the frame before's — since I/II going to their fitted `B` is what takes
-    /// volume away. The path unchanged when no frame falls; otherwise knots at the frames.
+    /// volume away. A frame that would hold more than the finished blend (the first frame at
+    /// `u ≥ 1`) goes the least further toward fitted that brings it down to it, when that does
+    /// not fall below the frame before: else the finished frame would lose volume (from the
+    /// duck's centre (0, 0, 0) the last frame of the blend held 1.0007 of the final volume).
+    /// The path unchanged when no frame is held; otherwise knots at the frames.
     pub fn held_at_frames(
         &self,
         frames: &[(f64, f64)],
@@ -128,6 +132,11 @@ impl BlendPath {
         let mut start = None;
         let mut last: Option<usize> = None;
         let mut last_fitted = 0.0;
+        // The finished blend's volume, a ceiling for the frames before it.
+        let ceiling = frames
+            .iter()
+            .find(|f| f.1 >= 1.0)
+            .map(|&(t, _)| volume(t, 1.0, 1.0));
         for &(t, u) in frames {
             if u >= 1.0 {
                 break;
@@ -153,6 +162,14 @@ impl BlendPath {
                         hi = mid;
                     }
                 }
+                held = true;
+            }
+            if let Some(cap) = ceiling
+                && pick.1 > cap
+                && let Some(lower) = lowered_to(cap, pick.0, |f| volume(t, detail, f))
+                && lower.1 >= before
+            {
+                pick = lower;
                 held = true;
             }
             knots.push(BlendKnot {
@@ -193,6 +210,27 @@ impl BlendPath {
         };
         (lerp(a.detail, b.detail, s), lerp(a.fitted, b.fitted, s))
     }
+}
+
+/// The least fitted progress in `[from, 1]` whose volume (`volume(fitted)`) is at most `cap`,
+/// with its volume ([`HOLD_BISECTIONS`] bisections); `None` when even the fitted end holds more.
+fn lowered_to(cap: usize, from: f64, volume: impl Fn(f64) -> usize) -> Option<(f64, usize)> {
+    let end = volume(1.0);
+    if end > cap {
+        return None;
+    }
+    let (mut lo, mut hi) = (from, 1.0);
+    let mut best = (1.0, end);
+    for _ in 0..HOLD_BISECTIONS {
+        let mid = 0.5 * (lo + hi);
+        let v = volume(mid);
+        if v <= cap {
+            (hi, best) = (mid, (mid, v));
+        } else {
+            lo = mid;
+        }
+    }
+    Some(best)
 }
 
 /// The lattice path from `(0, 0)` to `(n, n)` through `grid` (steps `(1, k)` for any `k ≥ 0`,
@@ -370,6 +408,57 @@ mod tests {
         // Where fitted takes nothing, nothing is held.
         let rising = |_t: f64, d: f64, _f: f64| (1000.0 * d) as usize;
         assert_eq!(path.held_at_frames(&frames, rising), path);
+    }
+
+    /// A volume that overshoots the finished blend's near the end (the duck's centre start:
+    /// 1.0007 of the final at the last frame of the blend): the frames are brought down to it,
+    /// still never falling, so the finished frame loses nothing.
+    #[test]
+    fn a_frame_above_the_finished_blend_is_brought_down_to_it() {
+        let path = BlendPath {
+            knots: vec![
+                BlendKnot {
+                    u: 0.0,
+                    detail: 0.0,
+                    fitted: 0.0,
+                },
+                BlendKnot {
+                    u: 0.9,
+                    detail: 1.0,
+                    fitted: 0.5,
+                },
+                BlendKnot {
+                    u: 1.0,
+                    detail: 1.0,
+                    fitted: 1.0,
+                },
+            ],
+        };
+        // Detail adds 1000; fitted takes 100 over its second half: at detail 1 and fitted
+        // ½ the volume is 2000, above the finished 1900.
+        let volume =
+            |_t: f64, d: f64, f: f64| (1000.0 + 1000.0 * d - 200.0 * (f - 0.5).max(0.0)) as usize;
+        let frames: Vec<(f64, f64)> = (0..=20).map(|k| (k as f64, k as f64 / 20.0)).collect();
+        assert!(
+            path.held_at_frames(&frames, |_, _, _| 7) == path,
+            "nothing to hold"
+        );
+        let held = path.held_at_frames(&frames, volume);
+        let finished = volume(20.0, 1.0, 1.0);
+        let mut last = volume(0.0, 0.0, 0.0);
+        let mut lowered = 0;
+        for &(t, u) in &frames[1..] {
+            let (d, f) = held.at(u);
+            let v = volume(t, d, f);
+            assert!(v >= last, "frame {t} falls: {v} < {last}");
+            assert!(
+                v <= finished,
+                "frame {t} holds {v}, above the finished {finished}"
+            );
+            lowered += usize::from(f > path.at(u).1);
+            last = v;
+        }
+        assert!(lowered > 0 && held.at(1.0) == (1.0, 1.0));
     }
 
     #[test]

@@ -44,7 +44,11 @@
 //!   before it (nearest in that blob's ellipsoidal radius, so a long blob's far end counts as
 //!   near) — at zero size, and moves out while its semi-axes grow to full size (smoothstep);
 //!   its offset from its parent's *current* centre grows with its size, so a chain of III
-//!   blobs (a leg) grows out as a scaled copy of itself about its root. A III blob's `B²`
+//!   blobs (a leg) grows out as a scaled copy of itself about its root. Steered (`start`,
+//!   `order`), a category-II blob emerges part way out instead — half way from its parent's
+//!   centre to where the way to its own centre leaves the cloud shown before it (`emerge.rs`) —
+//!   so it does not cross the body mid-sized (from the duck's tail it split a thin tip of the
+//!   body off on screen). A III blob's `B²`
 //!   rises from zero with the blend, so it adds to the field gently. Before it starts, a blob
 //!   is hidden (`B = 0`). The visible count never decreases, and with `Together` neither
 //!   does the visible volume.
@@ -72,10 +76,12 @@ use crate::hash::Fnv1a;
 
 mod blend;
 mod early;
+mod emerge;
 mod order;
 
 use blend::{BlendPath, GRID_STEPS};
 use early::{blend_b, early_shape, volume_paced_finish};
+use emerge::{emergence, way_out};
 use order::order_by_nearest;
 pub use order::{Steering, category_ii_count, display_order};
 
@@ -276,6 +282,9 @@ pub struct DiffusionPlan {
     /// Volume of categories I and II as shown, over the final volume (2 % lattice; NaN when
     /// not measured).
     early_share: f64,
+    /// Per blob (by index): where on the way from its parent's centre to its own it emerges,
+    /// as a share of the way (0: at the parent's centre; steered II blobs, `emerge.rs`).
+    emerge: Vec<f64>,
     timeline: Timeline,
 }
 
@@ -467,6 +476,19 @@ impl DiffusionPlan {
         for (pos, &i) in order.iter().enumerate() {
             parent[i] = nearest_blob(target, &order[..pos], target[i].center);
         }
+        // Steered, a II blob emerges part way out (`emerge.rs`); unsteered, at its parent's
+        // centre as before.
+        let steered = !cfg.steering().is_none();
+        let emerge = if steered && strength > 0.0 {
+            emergence(
+                &early,
+                threshold,
+                &order[..(1 + n_ii).min(order.len())],
+                &parent,
+            )
+        } else {
+            vec![0.0; n]
+        };
         // Schedule: II paced by volume, III at the end.
         let motion = timeline.motion_seconds();
         let g2 = cfg.grow_seconds.min(motion / 3.0);
@@ -537,7 +559,8 @@ impl DiffusionPlan {
             threshold,
             early_share,
             together: cfg.category_iii == DetailArrival::Together,
-            steered: !cfg.steering().is_none(),
+            steered,
+            emerge,
             timeline,
         }
     }
@@ -597,9 +620,27 @@ impl DiffusionPlan {
             let first = self.order.first() == Some(&i);
             let from = self.parent[i].map_or(blob.center, |p| out[p].center);
             let home = self.parent[i].map_or(DVec3::ZERO, |p| self.target[p].center);
+            // Steered II: emerge part way out, scaled with the parent's own growth so the point
+            // stays inside it while it grows (the shell's early frames split in 3D without).
+            let k = match self.parent[i] {
+                Some(p) if self.emerge[i] > 0.0 => {
+                    let grown = out[p].semi_axes.max_element()
+                        / self.target[p]
+                            .semi_axes
+                            .max_element()
+                            .max(f64::MIN_POSITIVE);
+                    self.emerge[i] * grown.min(1.0)
+                }
+                _ => 0.0,
+            };
             if !first && (t < s || (t == s && g > 0.0)) {
+                let center = if k > 0.0 {
+                    from + (blob.center - home) * way_out(k, 0.0)
+                } else {
+                    from
+                };
                 out[i] = Blob {
-                    center: from,
+                    center,
                     b: 0.0,
                     ..*blob
                 };
@@ -630,7 +671,7 @@ impl DiffusionPlan {
             // The offset from the parent grows with the size: a chain of growing blobs is a
             // scaled copy of its final shape about its root.
             let center = if self.parent[i].is_some() {
-                from + (blob.center - home) * e
+                from + (blob.center - home) * way_out(k, e)
             } else {
                 blob.center
             };
