@@ -210,6 +210,11 @@ impl Surfaces {
         self.casters.is_some()
     }
 
+    /// The ground plane, if any.
+    pub(crate) fn ground(&self) -> Option<Ground> {
+        self.ground
+    }
+
     /// Whether the frame gets the `shadow` pass.
     pub fn shadow_pass(&self) -> bool {
         self.shadow_pass

@@ -186,6 +186,9 @@ pub(crate) fn shadow<M: Medium>(
     } else {
         1.0
     };
-    let total = pass.total.value(surfaces, p, normal, sun, seen, pass.rng);
+    let on_ground = t_hold >= t_ground;
+    let total = pass
+        .total
+        .value(surfaces, p, normal, on_ground, sun, seen, pass.rng);
     (sun, total)
 }
