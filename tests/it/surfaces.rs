@@ -604,9 +604,9 @@ fn the_shadow_total_pass_matches_a_march_through_the_exported_vdb() {
     }
 }
 
-/// Without a cloud `shadow_total` is exactly 1 on the ground (and `shadow` too); a frame
-/// without ground and holdouts has neither layer, and a frame with holdouts but no ground has
-/// no `shadow_total` either.
+/// Without a cloud `shadow_total` is exactly 1 on the ground (and `shadow` too); with one it
+/// is the same bits at 1 and 3 threads; a frame without ground and holdouts has neither layer,
+/// and a frame with holdouts but no ground has no `shadow_total` either.
 #[test]
 fn shadow_total_is_one_without_a_cloud_and_absent_without_the_pass() {
     let s = settings(Some(
@@ -616,12 +616,22 @@ fn shadow_total_is_one_without_a_cloud_and_absent_without_the_pass() {
     let total = empty.shadow_total.as_ref().expect("a shadow_total layer");
     assert!(total.iter().all(|t| *t == [1.0; 3]));
     assert!(empty.shadow.as_ref().unwrap().iter().all(|&t| t == 1.0));
-    let with = render(&s);
+    // With a cloud: bit-identical at any thread count (the ground's table and the pixels'
+    // directions are seeded per item).
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render(&s))
+    };
+    let (with, three) = (on(1), on(3));
     let under = with.shadow_total.as_ref().unwrap();
     assert!(
         under.iter().any(|t| t[2] < 0.9),
         "the cloud does shadow the ground"
     );
+    assert_eq!(with.shadow_total, three.shadow_total, "1 vs 3 threads");
     let none = render(&settings(None));
     assert!(none.shadow.is_none() && none.shadow_total.is_none());
     let held = render(&settings(Some(
