@@ -2,7 +2,7 @@
 //! stops at a holdout ([`stop`]), whether a pixel lies on a holdout's edge (its corners
 //! disagree: [`TileHoldouts::pixel`]; it then traces [`HOLDOUT_EDGE_RAYS`] more rays), and the
 //! shadow pass's values for a ray ([`shadow`]: the sun's `shadow`, and `shadow_total` with the
-//! sky's share, `shadow_total.rs`); [`mark`] puts them on a ray's result.
+//! sky's share, `shadow_total/`); [`mark`] puts them on a ray's result.
 //!
 //! A tile whose frustum misses every holdout's bounding ball casts nothing: its pixels are
 //! marched exactly as without holdouts (the same bits). Inside an active tile the pixel
