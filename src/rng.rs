@@ -29,6 +29,8 @@ pub enum Stream {
     Path = 9,
     /// Light paths of the multiple-scattering estimate (per photon and frame's light grid).
     Photons = 10,
+    /// The shadow pass's directions toward the cloud (per pixel: `shadow_total`).
+    SkyShadow = 11,
 }
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash.

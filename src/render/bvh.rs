@@ -75,7 +75,17 @@ impl TriangleBvh {
     /// The nearest hit's distance `t ∈ (0, max]` along `origin + t·dir`.
     #[inline]
     pub(crate) fn hit(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
-        self.traverse::<false>(origin, dir, max)
+        self.traverse::<false>(origin, dir, max).map(|(t, _)| t)
+    }
+
+    /// The nearest hit's distance and the unit normal of the triangle hit, facing against
+    /// `dir` (the side the ray sees).
+    #[inline]
+    pub(crate) fn hit_normal(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<(f32, Vec3A)> {
+        let (t, i) = self.traverse::<false>(origin, dir, max)?;
+        let tri = &self.tris[i];
+        let n = tri.e1.cross(tri.e2).normalize_or_zero();
+        Some((t, if n.dot(dir) > 0.0 { -n } else { n }))
     }
 
     /// Whether any triangle lies on `origin + t·dir`, `t ∈ (0, max)` (the first hit found
@@ -85,15 +95,20 @@ impl TriangleBvh {
         self.traverse::<true>(origin, dir, max).is_some()
     }
 
-    /// The nearest hit, or with `ANY` the first found.
+    /// The nearest hit and its triangle, or with `ANY` the first found.
     #[inline]
-    fn traverse<const ANY: bool>(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<f32> {
+    fn traverse<const ANY: bool>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        max: f32,
+    ) -> Option<(f32, usize)> {
         if self.nodes.is_empty() {
             return None;
         }
         let inv = dir.recip();
         let mut best = max;
-        let mut found = false;
+        let mut found = None;
         let mut stack = [0u32; STACK];
         let mut top = 0usize;
         let mut node = 0usize;
@@ -101,13 +116,16 @@ impl TriangleBvh {
             let n = &self.nodes[node];
             if n.count > 0 {
                 let first = n.index as usize;
-                for tri in &self.tris[first..first + n.count as usize] {
+                for (i, tri) in self.tris[first..first + n.count as usize]
+                    .iter()
+                    .enumerate()
+                {
                     if let Some(t) = intersect(tri, origin, dir, best) {
                         if ANY {
-                            return Some(t);
+                            return Some((t, first + i));
                         }
                         best = t;
-                        found = true;
+                        found = Some(first + i);
                     }
                 }
             } else {
@@ -141,7 +159,7 @@ impl TriangleBvh {
             top -= 1;
             node = stack[top] as usize;
         }
-        found.then_some(best)
+        found.map(|i| (best, i))
     }
 }
 

@@ -35,6 +35,10 @@ pub struct Frame {
     /// through the cloud from the surface each pixel sees (the ground plane or a holdout), 1
     /// where it sees none or the cloud casts no shadow there.
     pub shadow: Option<Vec<f32>>,
+    /// The `shadow_total` layer (RGB), with `shadow`: the light the cloud lets through to the
+    /// surface each pixel sees from the sun **and** the sky, over the light that reaches it
+    /// without the cloud (`integrator/shadow_total/`); 1 where it sees none.
+    pub shadow_total: Option<Vec<[f32; 3]>>,
     /// The window rendered, when only a region was ([`crate::render::Film::region`]); the pixels outside it
     /// are empty (no cloud).
     pub region: Option<Region>,

@@ -81,6 +81,18 @@ impl Bvh {
         self.mesh.hit(origin, dir, max)
     }
 
+    /// [`Bvh::hit`] with the unit normal of the triangle hit, facing against `dir`.
+    #[inline]
+    fn hit_normal(&self, origin: Vec3A, dir: Vec3A, max: f32) -> Option<(f32, Vec3A)> {
+        let oc = origin - self.center;
+        let b = oc.dot(dir);
+        let c = oc.length_squared() - self.radius * self.radius;
+        if c > 0.0 && (b > 0.0 || b * b < c) {
+            return None;
+        }
+        self.mesh.hit_normal(origin, dir, max)
+    }
+
     /// Whether any triangle lies on the ray within `max` (the ball first, as [`Bvh::hit`]).
     #[inline]
     fn occluded(&self, origin: Vec3A, dir: Vec3A, max: f32) -> bool {
@@ -198,6 +210,11 @@ impl Surfaces {
         self.casters.is_some()
     }
 
+    /// The ground plane, if any.
+    pub(crate) fn ground(&self) -> Option<Ground> {
+        self.ground
+    }
+
     /// Whether the frame gets the `shadow` pass.
     pub fn shadow_pass(&self) -> bool {
         self.shadow_pass
@@ -218,6 +235,16 @@ impl Surfaces {
             .as_ref()
             .and_then(|b| b.hit(ray.origin, ray.dir, f32::MAX))
             .unwrap_or(f32::INFINITY)
+    }
+
+    /// The unit normal, facing the camera, of the holdout the camera ray meets first (the
+    /// shadow pass's surface point; `None`: it meets none).
+    #[inline]
+    pub(crate) fn holdout_normal(&self, ray: &Ray) -> Option<Vec3A> {
+        self.camera
+            .as_ref()
+            .and_then(|b| b.hit_normal(ray.origin, ray.dir, f32::MAX))
+            .map(|(_, n)| n)
     }
 
     /// Whether the camera ray meets a holdout (any hit: the pixel corners' test).

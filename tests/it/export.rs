@@ -509,6 +509,7 @@ fn exr_bytes_are_identical_across_encodings() {
         motion: None,
         holdout: None,
         shadow: None,
+        shadow_total: None,
         region: None,
     };
     let strings = ["scene", "frame", "seed", "version"]

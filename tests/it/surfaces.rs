@@ -496,18 +496,230 @@ fn the_shadow_pass_matches_a_march_through_the_exported_vdb() {
     assert_eq!(outside, 0, "{outside} pixels beyond 0.02 (max {worst})");
 }
 
+/// The ground's `shadow_total` (sun and sky) against an independent estimate through the
+/// frame's VDB: `tools/shadow_march.py` with the sky's description (its own irradiance in closed
+/// form, its own directions toward the cloud, its own march through OpenVDB's grid). Every
+/// pixel that sees the ground within 0.02 per channel, under the default light (a sun of 12
+/// and the default gradient sky) and under the sky alone (no sun: the sky's share on its own).
+#[test]
+fn the_shadow_total_pass_matches_a_march_through_the_exported_vdb() {
+    let height = -2.0f32;
+    let mut s = settings(Some(
+        Surfaces::new(5, vec![], Some(Ground { height }), true).unwrap(),
+    ));
+    s.sun.direction = Vec3::new(0.35, -1.0, -0.25);
+    s.camera.position = Vec3::new(3.0, 1.5, 6.5);
+    s.camera.look_at = Vec3::new(3.0, -2.0, 1.5);
+    let cam = CameraRays::new(&s.camera, s.width, s.height);
+    let to_sun = -Vec3A::from(s.sun.travel_dir());
+    let mut points = format!("{} {} {}\n", to_sun.x, to_sun.y, to_sun.z);
+    let mut pixels = Vec::new();
+    for y in 0..s.height {
+        for x in 0..s.width {
+            let r = cam.pixel_ray(x, y);
+            let t = (height - r.origin.y) / r.dir.y;
+            if t.is_nan() || t <= 0.0 {
+                continue;
+            }
+            let p = r.origin + r.dir * t;
+            points += &format!("{} {} {}\n", p.x, p.y, p.z);
+            pixels.push((y * s.width + x) as usize);
+        }
+    }
+    let dir = temp_dir("surfaces-shadow-total");
+    // Half the default voxel, as the `shadow` check (the sun's share is the same ray).
+    let voxel = s.length_scale as f64 / 1024.0;
+    let grid = nephele::export::frame_grid(&s, &cloud(), voxel).unwrap();
+    let vdb = dir.join("cloud.vdb");
+    nephele::export::write_vdb(&vdb, &grid, nephele::export::GRID_NAME, 1).unwrap();
+    let Sky::Gradient { zenith, horizon } = Sky::default() else {
+        panic!("the default sky is a gradient")
+    };
+    for (name, intensity) in [("sun and sky", s.sun.intensity), ("sky alone", 0.0)] {
+        let mut s = s.clone();
+        s.sun.intensity = intensity;
+        let frame = render(&s);
+        let total = frame.shadow_total.as_ref().expect("a shadow_total layer");
+        let shadow = frame.shadow.as_ref().unwrap();
+        // Outside the ground: exactly 1.
+        for (i, t) in total.iter().enumerate() {
+            if !pixels.contains(&i) {
+                assert_eq!(*t, [1.0; 3], "pixel {i} sees no surface");
+            }
+        }
+        let e = s.sun.color * s.sun.intensity;
+        let sky = format!(
+            "{} {} {}\n{} {} {}\n{} {} {}\n",
+            e.x, e.y, e.z, zenith.x, zenith.y, zenith.z, horizon.x, horizon.y, horizon.z
+        );
+        let Some(marched) = python_march_with(&dir, &vdb, &points, Some(&sky)) else {
+            return;
+        };
+        assert_eq!(marched.len(), pixels.len());
+        let (mut worst, mut sum, mut outside, mut dark) = (0.0f32, 0.0f32, 0, 0);
+        let mut deepest = 1.0f32;
+        for (&i, row) in pixels.iter().zip(&marched) {
+            assert!(
+                (shadow[i] - row[0]).abs() < 0.02,
+                "the sun's share, pixel {i}"
+            );
+            for c in 0..3 {
+                let e = (total[i][c] - row[1 + c]).abs();
+                worst = worst.max(e);
+                sum += e;
+                outside += (e > 0.02) as usize;
+                if e > 0.02 && intensity > 0.0 {
+                    eprintln!(
+                        "{name}: pixel {i} channel {c}: {} vs {}",
+                        total[i][c],
+                        row[1 + c]
+                    );
+                }
+            }
+            deepest = deepest.min(row[3]);
+            dark += (row[3] < 0.9) as usize;
+        }
+        eprintln!(
+            "{name}: {} ground pixels ({dark} below 0.9 in blue, deepest {deepest:.3}): \
+             |shadow_total − OpenVDB estimate| max {worst:.4}, mean {:.5}; {outside} channels \
+             beyond 0.02",
+            pixels.len(),
+            sum / (3 * pixels.len()) as f32
+        );
+        assert!(dark > 50, "{name}: the cloud's shadow is on the ground");
+        let mean = sum / (3 * pixels.len()) as f32;
+        if intensity > 0.0 {
+            assert_eq!(
+                outside, 0,
+                "{name}: {outside} channels beyond 0.02 (max {worst})"
+            );
+        } else {
+            // The sky alone: the estimate's noise is the whole of the value (64 directions a
+            // pixel), unbiased.
+            assert!(
+                mean < 0.01 && worst < 0.12,
+                "{name}: mean {mean}, max {worst}"
+            );
+        }
+    }
+}
+
+/// Without a cloud `shadow_total` is exactly 1 on the ground (and `shadow` too); with one it
+/// is the same bits at 1 and 3 threads; a frame without ground and holdouts has neither layer,
+/// and a frame with holdouts but no ground has no `shadow_total` either.
+#[test]
+fn shadow_total_is_one_without_a_cloud_and_absent_without_the_pass() {
+    let s = settings(Some(
+        Surfaces::new(6, vec![], Some(Ground { height: -2.0 }), true).unwrap(),
+    ));
+    let empty = FrameRenderer::render_once(&s, &[], &FrameOptions::default()).0;
+    let total = empty.shadow_total.as_ref().expect("a shadow_total layer");
+    assert!(total.iter().all(|t| *t == [1.0; 3]));
+    assert!(empty.shadow.as_ref().unwrap().iter().all(|&t| t == 1.0));
+    // With a cloud: bit-identical at any thread count (the ground's table and the pixels'
+    // directions are seeded per item).
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render(&s))
+    };
+    let (with, three) = (on(1), on(3));
+    let under = with.shadow_total.as_ref().unwrap();
+    assert!(
+        under.iter().any(|t| t[2] < 0.9),
+        "the cloud does shadow the ground"
+    );
+    assert_eq!(with.shadow_total, three.shadow_total, "1 vs 3 threads");
+    let none = render(&settings(None));
+    assert!(none.shadow.is_none() && none.shadow_total.is_none());
+    let held = render(&settings(Some(
+        Surfaces::new(7, vec![wall(3.5, -10.0, 3.13)], None, false).unwrap(),
+    )));
+    assert!(held.shadow.is_none() && held.shadow_total.is_none());
+}
+
+/// A holdout under the cloud catches its shadow on its own normal: a slab tilted 3° just above
+/// the ground under the cloud, lit by the sky alone (the sky's share on its own), gets
+/// `shadow_total` well below 1 under the cloud and, at its near edge, about what the ground
+/// gets just beside it (the same place within two pixels, normals 3° apart; a normal facing
+/// away would see no cloud: 1).
+#[test]
+fn a_holdout_catches_shadow_total_on_its_own_normal() {
+    let height = -2.0f32;
+    let tilt = 3.0f64.to_radians();
+    // Its near edge (z = 3) 0.01 above the ground, rising away from the camera: it hides no
+    // ground point in front of it from the cloud.
+    let slab = quad(
+        DVec3::new(2.0, height as f64 + 0.01, 3.0),
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(0.0, 2.0 * tilt.sin(), -2.0 * tilt.cos()),
+        false,
+    );
+    let mut s = settings(Some(
+        Surfaces::new(8, vec![slab], Some(Ground { height }), true).unwrap(),
+    ));
+    s.camera.position = Vec3::new(3.0, 1.5, 6.5);
+    s.camera.look_at = Vec3::new(3.0, -2.0, 1.5);
+    s.sun.intensity = 0.0;
+    let frame = render(&s);
+    let (total, held) = (
+        frame.shadow_total.as_ref().unwrap(),
+        frame.holdout.as_ref().unwrap(),
+    );
+    let on_slab: Vec<usize> = (0..total.len()).filter(|&i| held[i] == 1.0).collect();
+    let darkest = on_slab.iter().map(|&i| total[i][2]).fold(1.0f32, f32::min);
+    assert!(
+        on_slab.len() > 200 && darkest < 0.8,
+        "{} pixels on the slab, darkest {darkest}",
+        on_slab.len()
+    );
+    // Its near edge (the lowest rows of it in the frame) against the ground two rows below.
+    let w = s.width as usize;
+    let (mut pairs, mut sum, mut worst) = (0, 0.0f32, 0.0f32);
+    for &i in &on_slab {
+        let below = i + 2 * w;
+        if below < total.len() && held[below] == 0.0 && held[i + w] < 1.0 {
+            pairs += 1;
+            let d = (total[i][2] - total[below][2]).abs();
+            sum += d;
+            worst = worst.max(d);
+        }
+    }
+    eprintln!(
+        "slab: {} pixels, darkest {darkest:.3}; {pairs} edge pairs with the ground: |Δ| mean \
+         {:.4}, max {worst:.4}",
+        on_slab.len(),
+        sum / pairs as f32
+    );
+    assert!(pairs > 10 && sum / (pairs as f32) < 0.03 && worst < 0.12);
+}
+
 /// `tools/shadow_march.py` on `vdb` from `points`; `None` (after saying why) without pyopenvdb.
 fn python_march(dir: &TempDir, vdb: &Path, points: &str) -> Option<Vec<f32>> {
+    python_march_with(dir, vdb, points, None).map(|rows| rows.iter().map(|r| r[0]).collect())
+}
+
+/// `tools/shadow_march.py` on `vdb` from `points`, with the sky file `sky` when given: each
+/// output line's numbers (`t_sun` alone, or `t_sun r g b` with a sky).
+fn python_march_with(
+    dir: &TempDir,
+    vdb: &Path,
+    points: &str,
+    sky: Option<&str>,
+) -> Option<Vec<Vec<f32>>> {
     let (input, out) = (dir.join("points.txt"), dir.join("marched.txt"));
     std::fs::write(&input, points).unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/shadow_march.py");
-    let run = match Command::new("/usr/bin/python3")
-        .arg(&script)
-        .arg(vdb)
-        .arg(&input)
-        .arg(&out)
-        .output()
-    {
+    let mut command = Command::new("/usr/bin/python3");
+    command.arg(&script).arg(vdb).arg(&input).arg(&out);
+    if let Some(sky) = sky {
+        let path = dir.join("sky.txt");
+        std::fs::write(&path, sky).unwrap();
+        command.arg(path);
+    }
+    let run = match command.output() {
         Ok(r) => r,
         Err(e) => {
             skip_or_fail("OpenVDB", &format!("/usr/bin/python3 cannot run ({e})"));
@@ -530,7 +742,11 @@ fn python_march(dir: &TempDir, vdb: &Path, points: &str) -> Option<Vec<f32>> {
         String::from_utf8_lossy(&run.stderr)
     );
     let text = std::fs::read_to_string(&out).unwrap();
-    Some(text.lines().map(|l| l.parse().unwrap()).collect())
+    Some(
+        text.lines()
+            .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+            .collect(),
+    )
 }
 
 /// A scene with a holdout OBJ and a ground: they load into the frame's settings, the EXR
@@ -570,7 +786,16 @@ fn scene_holdouts_and_ground_load_with_located_errors_and_write_their_layers() {
         .iter()
         .map(|c| c.name.to_string())
         .collect();
-    for want in ["holdout.A", "shadow.R", "shadow.G", "shadow.B", "A"] {
+    for want in [
+        "holdout.A",
+        "shadow.R",
+        "shadow.G",
+        "shadow.B",
+        "shadow_total.R",
+        "shadow_total.G",
+        "shadow_total.B",
+        "A",
+    ] {
         assert!(names.iter().any(|n| n == want), "{want} in {names:?}");
     }
     // The mesh file is part of the frame's inputs: edited, the frame is rendered again.

@@ -41,17 +41,19 @@ pub(crate) mod motion_blur;
 
 mod march;
 pub(crate) mod reference;
+pub(crate) mod shadow_total;
 pub(crate) mod surface_rays;
 mod tiles;
 
 pub use march::motion::{CloudVelocity, MotionSource};
 pub(crate) use march::{MarchFn, PixelResult, PixelSum, ScreenMotion, march, shaded_march};
-pub(crate) use tiles::render_film;
+pub(crate) use tiles::{PixelOut, render_film};
 
 use glam::Vec3A;
 
 use crate::render::camera::Frustum;
-use surface_rays::{Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
+use shadow_total::ShadowTotal;
+use surface_rays::{Corners, HOLDOUT_EDGE_RAYS, ShadowRays, TileHoldouts};
 
 use crate::render::Frame;
 use crate::render::camera::CameraRays;
@@ -133,13 +135,14 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
 ) -> Frame {
     let surfaces = settings.surfaces.as_deref();
     let shadow_pass = surfaces.is_some_and(|s| s.shadow_pass());
+    let shading = Shading::new(settings);
+    let total = shadow_pass.then(|| ShadowTotal::new(settings, shading.sun_radiance, medium));
     let to_sun = -Vec3A::from(settings.sun.travel_dir());
     let w = settings.width;
     let cam = CameraRays::new(&settings.camera, w, settings.height);
     let screen = motion
         .filter(|_| film.motion)
         .map(|m| ScreenMotion::new(cam, m));
-    let shading = Shading::new(settings);
     let seed = settings.seed;
     let samples = settings.quality.samples.max(1);
     let side = (samples as f32).sqrt().ceil() as u32;
@@ -165,6 +168,10 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                 tile,
             } = scratch;
             let corners = tile.pixel(x, y);
+            let mut sky_rng = total
+                .as_ref()
+                .map(|_| item_rng(seed, Stream::SkyShadow, pixel));
+            let mut shadow_sum = Vec3A::ZERO;
             // Covered where no cloud can be and no shadow is asked for: where the ray stops
             // does not matter, only that it does.
             let blind = corners == Corners::All && shadow.is_none() && medium.tile_is_empty(march);
@@ -187,9 +194,16 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                     coverage,
                     motion,
                 );
-                let shadow = shadow.as_mut();
-                surface_rays::mark(
-                    &mut r, surfaces, medium, shadow, &ray, t_hold, to_sun, jitter,
+                let pass = shadow
+                    .as_mut()
+                    .zip(total.as_ref().zip(sky_rng.as_mut()))
+                    .map(|(scratch, (total, rng))| ShadowRays {
+                        scratch,
+                        total,
+                        rng,
+                    });
+                shadow_sum += surface_rays::mark(
+                    &mut r, surfaces, medium, pass, &ray, t_hold, to_sun, jitter,
                 );
                 r
             };
@@ -201,7 +215,11 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                 // A holdout's edge through the pixel: more rays, whatever the cloud does.
                 let held = corners == Corners::Some;
                 if !held && (edge <= 1 || !at_edge(&first)) {
-                    return (first, 1);
+                    return PixelOut {
+                        result: first,
+                        rays: 1,
+                        shadow_total: shadow_sum,
+                    };
                 }
                 // The centre ray stays one of the pixel's rays (no ray is wasted; the
                 // generator's stream simply goes on).
@@ -217,7 +235,11 @@ fn render_tiles<M: Medium, L: ShadowDepths>(
                 sum.add(&ray(k, grid));
             }
             let rays = n + (samples == 1) as u32;
-            (sum.mean(rays), rays)
+            PixelOut {
+                result: sum.mean(rays),
+                rays,
+                shadow_total: shadow_sum / rays as f32,
+            }
         },
     )
 }

@@ -34,9 +34,12 @@ use rand::RngExt;
 use crate::blobby::Blob;
 use crate::render::Frame;
 use crate::render::camera::{CameraRays, Frustum, Ray};
-use crate::render::integrator::surface_rays::{self, Corners, HOLDOUT_EDGE_RAYS, TileHoldouts};
+use crate::render::integrator::shadow_total::ShadowTotal;
+use crate::render::integrator::surface_rays::{
+    self, Corners, HOLDOUT_EDGE_RAYS, ShadowRays, TileHoldouts,
+};
 use crate::render::integrator::{
-    MotionSource, PixelSum, ScreenMotion, pixel_sample, render_film, shaded_march,
+    MotionSource, PixelOut, PixelSum, ScreenMotion, pixel_sample, render_film, shaded_march,
 };
 use crate::render::light::grid::LightGrid;
 use crate::render::light::shading::Shading;
@@ -281,6 +284,9 @@ pub(crate) fn render_slices(
     let surfaces = settings.surfaces.as_deref();
     let shadow_pass = surfaces.is_some_and(|s| s.shadow_pass());
     let to_sun = -Vec3A::from(settings.sun.travel_dir());
+    // The sky's share through the cloud at the middle of the shutter.
+    let middle = &slices[slices.len() / 2];
+    let total = shadow_pass.then(|| ShadowTotal::new(settings, shading.sun_radiance, middle));
     render_film(
         settings,
         film,
@@ -332,6 +338,10 @@ pub(crate) fn render_slices(
             }
             let rotation = time.random_range(0..strata);
             let mut sum = PixelSum::new();
+            let mut sky_rng = total
+                .as_ref()
+                .map(|_| item_rng(settings.seed, Stream::SkyShadow, pixel));
+            let mut shadow_sum = Vec3A::ZERO;
             for k in 0..rays {
                 let (ray, jitter) = scratch.rays[k as usize % scratch.rays.len()];
                 let j = ((k + rotation) % strata) as usize;
@@ -356,10 +366,22 @@ pub(crate) fn render_slices(
                 if let Some(sh) = shadow.as_deref_mut() {
                     m.set_time_offset(sh, dt);
                 }
-                surface_rays::mark(&mut r, surfaces, m, shadow, &ray, t_hold, to_sun, jitter);
+                let pass = shadow.zip(total.as_ref().zip(sky_rng.as_mut())).map(
+                    |(scratch, (total, rng))| ShadowRays {
+                        scratch,
+                        total,
+                        rng,
+                    },
+                );
+                shadow_sum +=
+                    surface_rays::mark(&mut r, surfaces, m, pass, &ray, t_hold, to_sun, jitter);
                 sum.add(&r);
             }
-            (sum.mean(rays), rays)
+            PixelOut {
+                result: sum.mean(rays),
+                rays,
+                shadow_total: shadow_sum / rays as f32,
+            }
         },
     )
 }

@@ -1,17 +1,20 @@
 //! What the camera's rays ask of the shot's surfaces ([`crate::render::Surfaces`]): where a ray
 //! stops at a holdout ([`stop`]), whether a pixel lies on a holdout's edge (its corners
 //! disagree: [`TileHoldouts::pixel`]; it then traces [`HOLDOUT_EDGE_RAYS`] more rays), and the
-//! shadow pass's value for a ray ([`shadow`]); [`mark`] puts both on a ray's result.
+//! shadow pass's values for a ray ([`shadow`]: the sun's `shadow`, and `shadow_total` with the
+//! sky's share, `shadow_total/`); [`mark`] puts them on a ray's result.
 //!
 //! A tile whose frustum misses every holdout's bounding ball casts nothing: its pixels are
 //! marched exactly as without holdouts (the same bits). Inside an active tile the pixel
 //! corners' hits are cast once per tile, `(TILE + 1)²` rays shared by neighbouring pixels.
 
 use glam::Vec3A;
+use rand_pcg::Pcg64Mcg;
 
 use crate::render::camera::{CameraRays, Frustum, Ray};
 use crate::render::integrator::PixelResult;
 use crate::render::integrator::march::optical_depth;
+use crate::render::integrator::shadow_total::ShadowTotal;
 use crate::render::medium::Medium;
 use crate::render::output::film::Region;
 use crate::render::surfaces::Surfaces;
@@ -102,60 +105,90 @@ pub(crate) fn stop(surfaces: Option<&Surfaces>, corners: Corners, ray: &Ray) -> 
     }
 }
 
+/// The shadow pass's state for one pixel's rays: the medium's scratch for the sun's ray (begun
+/// on [`Frustum::EVERYTHING`]), the frame's constants of `shadow_total` and the pixel's
+/// generator for its directions toward the cloud (`Stream::SkyShadow`).
+pub(crate) struct ShadowRays<'a, S> {
+    pub(crate) scratch: &'a mut S,
+    pub(crate) total: &'a ShadowTotal,
+    pub(crate) rng: &'a mut Pcg64Mcg,
+}
+
 /// What the surfaces add to camera `ray`'s result `r`: the `holdout` layer's share (1 when a
-/// holdout stopped the ray at `t_hold`) and, with the shadow pass (`shadow_scratch`: the
-/// medium begun on [`Frustum::EVERYTHING`]), its value ([`shadow`]). The one rule for a still
-/// and a blurred frame's rays.
+/// holdout stopped the ray at `t_hold`) and, with the shadow pass (`pass`), its `shadow` value
+/// ([`shadow`]); returns the ray's `shadow_total` (1 without the pass). The one rule for a
+/// still and a blurred frame's rays.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub(crate) fn mark<M: Medium>(
     r: &mut PixelResult,
     surfaces: Option<&Surfaces>,
     medium: &M,
-    shadow_scratch: Option<&mut M::Scratch>,
+    pass: Option<ShadowRays<'_, M::Scratch>>,
     ray: &Ray,
     t_hold: f32,
     to_sun: Vec3A,
     jitter: f32,
-) {
+) -> Vec3A {
     if t_hold < f32::INFINITY {
         r.holdout = 1.0;
     }
-    if let (Some(s), Some(scratch)) = (surfaces, shadow_scratch) {
-        r.shadow = shadow(s, medium, scratch, ray, t_hold, to_sun, jitter);
+    match (surfaces, pass) {
+        (Some(s), Some(pass)) => {
+            let (sun, total) = shadow(s, medium, pass, ray, t_hold, to_sun, jitter);
+            r.shadow = sun;
+            total
+        }
+        _ => Vec3A::ONE,
     }
 }
 
-/// The shadow pass's value for a camera `ray` stopped by a holdout at `t_hold` (infinity:
-/// none): where it sees a surface — the nearer of the holdout and the ground plane — the sun's
-/// transmittance `exp(−∫σ dt)` from that point toward the sun (`to_sun`, unit) through
-/// `medium` (marched by `scratch`, begun on [`Frustum::EVERYTHING`]); 1 where it sees no
+/// The shadow pass's values for a camera `ray` stopped by a holdout at `t_hold` (infinity:
+/// none), `shadow` and `shadow_total`. Where it sees a surface — the nearer of the holdout and
+/// the ground plane — `shadow` is the sun's transmittance `exp(−∫σ dt)` from that point toward
+/// the sun (`to_sun`, unit) through `medium` (marched by `pass.scratch`); 1 where it sees no
 /// surface, and where a holdout lies between the point and the sun (the plate's own geometry
-/// shadows it already: the cloud darkens it no further).
+/// shadows it already: the cloud darkens it no further). `shadow_total` adds the sky's share
+/// ([`ShadowTotal::value`], at the surface's normal facing the camera).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub(crate) fn shadow<M: Medium>(
     surfaces: &Surfaces,
     medium: &M,
-    scratch: &mut M::Scratch,
+    pass: ShadowRays<'_, M::Scratch>,
     ray: &Ray,
     t_hold: f32,
     to_sun: Vec3A,
     jitter: f32,
-) -> f32 {
-    let t = t_hold.min(surfaces.ground_hit(ray));
+) -> (f32, Vec3A) {
+    let t_ground = surfaces.ground_hit(ray);
+    let t = t_hold.min(t_ground);
     if !t.is_finite() {
-        return 1.0;
+        return (1.0, Vec3A::ONE);
     }
     let p = ray.at(t);
+    let normal = if t_hold < t_ground {
+        surfaces.holdout_normal(ray).unwrap_or(-ray.dir)
+    } else if ray.dir.y < 0.0 {
+        Vec3A::Y
+    } else {
+        Vec3A::NEG_Y
+    };
     // Off the surface, so that the shadow ray does not find the triangle it starts on.
     let origin = p + to_sun * (1e-4 * (1.0 + p.abs().max_element()));
-    if surfaces.any_holdout_on(origin, to_sun) {
-        return 1.0;
-    }
-    let shadow_ray = Ray {
-        origin,
-        dir: to_sun,
+    let seen = !surfaces.any_holdout_on(origin, to_sun);
+    let sun = if seen {
+        let shadow_ray = Ray {
+            origin,
+            dir: to_sun,
+        };
+        (-optical_depth(medium, pass.scratch, &shadow_ray, jitter)).exp()
+    } else {
+        1.0
     };
-    (-optical_depth(medium, scratch, &shadow_ray, jitter)).exp()
+    let on_ground = t_hold >= t_ground;
+    let total = pass
+        .total
+        .value(surfaces, p, normal, on_ground, sun, seen, pass.rng);
+    (sun, total)
 }

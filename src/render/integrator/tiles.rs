@@ -2,6 +2,7 @@
 //! straight into its band of the frame's buffers (beauty, passes, ID-matte ranks), only the
 //! tiles and pixels inside the film's window ([`render_film`]).
 
+use glam::Vec3A;
 use rayon::prelude::*;
 
 use crate::render::Frame;
@@ -34,6 +35,28 @@ struct Band<'a> {
     holdout: Option<&'a mut [f32]>,
     /// The `shadow` layer's rows, with the shadow pass.
     shadow: Option<&'a mut [f32]>,
+    /// The `shadow_total` layer's rows, with the shadow pass.
+    shadow_total: Option<&'a mut [[f32; 3]]>,
+}
+
+/// What a pixel gives the tile driver: its result, the number of rays (the mattes' and
+/// motion's weights) and its `shadow_total` (1 without the shadow pass). A `(result, rays)`
+/// pair is a pixel without the pass.
+pub(crate) struct PixelOut {
+    pub(crate) result: PixelResult,
+    pub(crate) rays: u32,
+    pub(crate) shadow_total: Vec3A,
+}
+
+impl From<(PixelResult, u32)> for PixelOut {
+    #[inline]
+    fn from((result, rays): (PixelResult, u32)) -> PixelOut {
+        PixelOut {
+            result,
+            rays,
+            shadow_total: Vec3A::ONE,
+        }
+    }
 }
 
 /// One band's rows of the frame's render passes ([`crate::render::Passes`]).
@@ -46,7 +69,7 @@ struct PassRows<'a> {
 impl Band<'_> {
     /// Store pixel `i` of the band (row-major within it).
     #[inline]
-    fn store(&mut self, i: usize, p: &PixelResult) {
+    fn store(&mut self, i: usize, p: &PixelResult, shadow_total: Vec3A) {
         self.rgb[i] = p.rgb.to_array();
         self.alpha[i] = 1.0 - p.transmittance;
         self.depth[i] = p.depth;
@@ -61,6 +84,9 @@ impl Band<'_> {
         if let Some(s) = &mut self.shadow {
             s[i] = p.shadow;
         }
+        if let Some(s) = &mut self.shadow_total {
+            s[i] = shadow_total.to_array();
+        }
     }
 }
 
@@ -69,23 +95,22 @@ impl Band<'_> {
 /// frustum)` with the whole tile's frustum (so a region's pixels see what the full frame's
 /// do); per pixel of the window `pixel(scratch, (x, y), coverage, motion)`, which returns the
 /// pixel and the number of rays whose matte weights it added to `coverage` and whose motion
-/// to `motion` (summed through `screen`; the vectors are 0 without it). Pixels outside the
-/// window stay empty (no cloud).
-pub(crate) fn render_film<S: Send>(
+/// to `motion` (summed through `screen`; the vectors are 0 without it), and with the shadow
+/// pass its `shadow_total` ([`PixelOut`]). Pixels outside the window stay empty (no cloud).
+pub(crate) fn render_film<S: Send, P: Into<PixelOut>>(
     settings: &RenderSettings,
     film: &Film,
     cam: &CameraRays,
     screen: Option<&ScreenMotion<'_>>,
     scratch: impl Fn() -> S + Sync + Send,
     begin_tile: impl Fn(&mut S, &Frustum, &Region) + Sync + Send,
-    pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>, &mut MotionSum<'_>) -> (PixelResult, u32)
-    + Sync
-    + Send,
+    pixel: impl Fn(&mut S, (u32, u32), &mut Coverage<'_>, &mut MotionSum<'_>) -> P + Sync + Send,
 ) -> Frame {
     let (w, h) = (settings.width, settings.height);
     let window = film.window(w, h);
     let of_blob = film.mattes.as_ref().map_or(&[][..], |m| &m.of_blob[..]);
     let n = (w * h) as usize;
+    let shadow_pass = settings.surfaces.as_ref().is_some_and(|s| s.shadow_pass());
     let mut frame = Frame {
         width: w,
         height: h,
@@ -105,11 +130,8 @@ pub(crate) fn render_film<S: Send>(
             .as_ref()
             .is_some_and(|s| s.has_holdouts())
             .then(|| vec![0.0; n]),
-        shadow: settings
-            .surfaces
-            .as_ref()
-            .is_some_and(|s| s.shadow_pass())
-            .then(|| vec![1.0; n]),
+        shadow: shadow_pass.then(|| vec![1.0; n]),
+        shadow_total: shadow_pass.then(|| vec![[1.0; 3]; n]),
         region: film.region,
     };
     let band_px = (w * TILE) as usize;
@@ -123,10 +145,12 @@ pub(crate) fn render_film<S: Send>(
         motion,
         holdout,
         shadow,
+        shadow_total,
         ..
     } = &mut frame;
     let holdout = optional_rows(holdout, band_px, bands);
     let shadow = optional_rows(shadow, band_px, bands);
+    let shadow_total = optional_rows(shadow_total, band_px, bands);
     let passes: Vec<Option<PassRows>> = match passes {
         Some(p) => {
             let crate::render::Passes { sun, sky, multiple } = &mut **p;
@@ -151,10 +175,16 @@ pub(crate) fn render_film<S: Send>(
         .zip(alpha.chunks_mut(band_px))
         .zip(depth.chunks_mut(band_px))
         .zip(passes.into_iter().zip(ranks).zip(motion))
-        .zip(holdout.into_iter().zip(shadow))
+        .zip(holdout.into_iter().zip(shadow).zip(shadow_total))
         .enumerate()
         .map(
-            |(k, ((((rgb, alpha), depth), ((passes, ranks), motion)), (holdout, shadow)))| Band {
+            |(
+                k,
+                (
+                    (((rgb, alpha), depth), ((passes, ranks), motion)),
+                    ((holdout, shadow), shadow_total),
+                ),
+            )| Band {
                 y0: k as u32 * TILE,
                 rgb,
                 alpha,
@@ -164,6 +194,7 @@ pub(crate) fn render_film<S: Send>(
                 motion,
                 holdout,
                 shadow,
+                shadow_total,
             },
         )
         .collect();
@@ -191,9 +222,11 @@ pub(crate) fn render_film<S: Send>(
                     for x in part.x0..part.x1 {
                         let mut coverage = Coverage::new(of_blob);
                         let mut motion = MotionSum::new(screen);
-                        let (p, rays) = pixel(scratch, (x, y), &mut coverage, &mut motion);
+                        let out: PixelOut =
+                            pixel(scratch, (x, y), &mut coverage, &mut motion).into();
+                        let rays = out.rays;
                         let i = ((y - y0) * w + x) as usize;
-                        band.store(i, &p);
+                        band.store(i, &out.result, out.shadow_total);
                         if let Some(r) = &mut band.ranks {
                             r[i] = coverage.ranks(rays);
                         }
@@ -207,12 +240,8 @@ pub(crate) fn render_film<S: Send>(
     frame
 }
 
-/// The bands' rows of an optional one-channel layer (`None` per band without it).
-fn optional_rows(
-    v: &mut Option<Vec<f32>>,
-    band_px: usize,
-    bands: usize,
-) -> Vec<Option<&mut [f32]>> {
+/// The bands' rows of an optional layer (`None` per band without it).
+fn optional_rows<T>(v: &mut Option<Vec<T>>, band_px: usize, bands: usize) -> Vec<Option<&mut [T]>> {
     match v {
         Some(v) => v.chunks_mut(band_px).map(Some).collect(),
         None => (0..bands).map(|_| None).collect(),

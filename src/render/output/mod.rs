@@ -30,7 +30,9 @@
 //! Holdouts ([`Frame::holdout`]): the channel `holdout.A`, each pixel's share covered by a
 //! holdout (the plate's geometry; the beauty is already 0 behind it). The shadow pass
 //! ([`Frame::shadow`]): `shadow.R/G/B` (equal), the sun's transmittance through the cloud from
-//! the surface the pixel sees, 1 elsewhere: what a compositor multiplies the plate by.
+//! the surface the pixel sees, 1 elsewhere: what a compositor multiplies a plate lit by the
+//! sun alone by; and [`Frame::shadow_total`]: `shadow_total.R/G/B`, the light of the sun and
+//! the sky together that the cloud lets through (the catcher for a plate lit by both).
 //!
 //! ID mattes ([`Frame::mattes`]): channels `CryptoObject00.R/G/B/A`, … and the
 //! `cryptomatte/<key>/…` header attributes of [`crate::render::output::cryptomatte`].
@@ -274,6 +276,12 @@ pub fn encode_exr_with(frame: &Frame, meta: Option<&FrameMetadata>) -> std::io::
     if let Some(sh) = &frame.shadow {
         for name in ["R", "G", "B"] {
             list.push(chan(&format!("shadow.{name}"), crop(sh)));
+        }
+    }
+    if let Some(st) = &frame.shadow_total {
+        for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+            let v = pixels.iter().map(|&i| st[i][c]).collect();
+            list.push(chan(&format!("shadow_total.{name}"), v));
         }
     }
     if let Some(m) = &frame.mattes {

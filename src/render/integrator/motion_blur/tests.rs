@@ -135,6 +135,7 @@ fn sub_frame_mean(base: &RenderSettings, blobs: &[Blob], v: DVec3, shutter: f64,
         motion: None,
         holdout: None,
         shadow: None,
+        shadow_total: None,
         region: None,
     };
     for offset in &centres {

@@ -190,6 +190,11 @@ pub fn frame_inputs(
             // pass), only when the scene has any: other frames keep their hashes.
             if let Some(s) = surfaces {
                 e.str("surfaces").put(&s.key());
+                // The shadow pass writes `shadow_total` too: frames rendered before it lack
+                // the layer and are redone.
+                if s.shadow_pass() {
+                    e.str("shadow_total");
+                }
             }
         }),
     );
