@@ -54,6 +54,8 @@ pub struct MultipleLight {
     /// Fluence of sunlight scattered exactly once (luminance; the sun's colour), which
     /// `fluence` and `flux` leave out: it keeps the phase function's lobe about the sun.
     pub sun_once: f32,
+    /// Net flux of the sunlight scattered exactly once (luminance).
+    pub sun_once_flux: Vec3A,
 }
 
 impl MultipleLight {
@@ -62,6 +64,7 @@ impl MultipleLight {
         fluence: Vec3A::ZERO,
         flux: Vec3A::ZERO,
         sun_once: 0.0,
+        sun_once_flux: Vec3A::ZERO,
     };
 }
 

@@ -201,14 +201,31 @@ impl Shading {
     /// `μ` the cosine between the flux and the way to the eye: positive everywhere, isotropic
     /// deep inside, forward-peaked where the light still streams (a backlit rim).
     ///
-    /// Sunlight scattered once (`m.sun_once`) is still spread about the sun's direction by the
-    /// phase function: scattered once more it is `φ₁ · (p ∗ p)(μ_sun)`, the phase function
-    /// convolved with itself (per pair of lobes an HG lobe of the product of their
-    /// asymmetries), `μ_sun` the cosine between the sunlight and the way to the eye.
+    /// Sunlight scattered once (`m.sun_once`, flux `m.sun_once_flux`) keeps the phase
+    /// function's two-lobe shape, which one HG lobe would blur: it is closed by that shape
+    /// about its own flux, the first scattering's asymmetries scaled so that the lobe's mean
+    /// cosine is `|F₁|/φ₁` (at most the phase function's own). Scattered once more it is
+    /// `φ₁ · (p_s ∗ p)(μ₁)`, `μ₁` the cosine between that flux and the way to the eye: where
+    /// the sunlight has just scattered (a thin or sunlit part) exactly the phase function
+    /// twice about the sun, deeper in (where the once-scattered light arrives from all
+    /// sides) broader, as the sum of all orders' lobe is.
     #[inline]
     pub(crate) fn fluence_in(&self, m: &MultipleLight, dir: Vec3A) -> Vec3A {
         let once = if m.sun_once > 0.0 {
-            self.sun_colour * (m.sun_once * self.twice_scattered(-self.sun_dir.dot(dir)))
+            // Its lobe: the phase function's shape about its flux, the first scattering's
+            // asymmetry scaled so the lobe's mean cosine is the flux's `|F₁|/φ₁` (the phase
+            // function's own mean cosine is `g (1 − w + w r)`).
+            let len = m.sun_once_flux.length();
+            let (mu, s) = if len > 0.0 && self.g > 0.0 {
+                (
+                    -dir.dot(m.sun_once_flux) / len,
+                    (len / m.sun_once / (PHASE_MEAN_COSINE * self.g)).min(1.0),
+                )
+            } else {
+                // No net flux: isotropic.
+                (0.0, 0.0)
+            };
+            self.sun_colour * (m.sun_once * self.twice_scattered(mu, s))
         } else {
             Vec3A::ZERO
         };
@@ -226,14 +243,18 @@ impl Shading {
         once + m.fluence * cloud_phase(mu, self.g * f)
     }
 
-    /// The cloud's phase function convolved with itself at cosine `mu`: light scattered twice.
+    /// Light scattered twice at cosine `mu` to its lobe's axis: the cloud's phase function
+    /// convolved with itself, the first scattering's asymmetries scaled by `s` (1: exactly the
+    /// phase function twice, about the sun). Per pair of HG lobes one HG lobe of the product
+    /// of their asymmetries.
     #[inline]
-    fn twice_scattered(&self, mu: f32) -> f32 {
-        let (w, gb) = (BACK_LOBE_WEIGHT, BACK_LOBE_RATIO * self.g);
+    fn twice_scattered(&self, mu: f32, s: f32) -> f32 {
+        let (w, r) = (BACK_LOBE_WEIGHT, BACK_LOBE_RATIO);
         let g = self.g;
-        (1.0 - w) * (1.0 - w) * henyey_greenstein(mu, g * g)
-            + 2.0 * w * (1.0 - w) * henyey_greenstein(mu, g * gb)
-            + w * w * henyey_greenstein(mu, gb * gb)
+        let g1 = (s * g).min(0.99);
+        (1.0 - w) * (1.0 - w) * henyey_greenstein(mu, g1 * g)
+            + 2.0 * w * (1.0 - w) * henyey_greenstein(mu, g1 * g * r)
+            + w * w * henyey_greenstein(mu, g1 * g * r * r)
     }
 
     /// In-scattered radiance per unit scattering coefficient at a point with optical depths
@@ -288,6 +309,10 @@ impl Shading {
         }
     }
 }
+
+/// The mean cosine of [`cloud_phase`] per unit asymmetry: `1 − w + w r` (each HG lobe's mean
+/// cosine is its asymmetry).
+const PHASE_MEAN_COSINE: f32 = 1.0 - BACK_LOBE_WEIGHT + BACK_LOBE_WEIGHT * BACK_LOBE_RATIO;
 
 /// Share of the isotropic sky estimate that the multiple-scattering octaves turn toward the
 /// eye. Calibrated against Mitsuba's full transport of the same sky (docs/MEASUREMENTS.md,

@@ -4,7 +4,7 @@
 //! In: the light grid's coarse lattice and its extinction (the medium sampled once a frame,
 //! [`crate::render::light::grid::LightGrid`]) and [`FluenceSettings`]. Out: [`FluenceGrid`],
 //! the fluence `φ` (RGB) and flux `F` of light scattered at least once (and apart from them the
-//! fluence of sunlight scattered exactly once), per node, smoothed,
+//! fluence and flux of sunlight scattered exactly once), per node, smoothed,
 //! trilinear anywhere ([`FluenceGrid::lookup`]); the shader turns them into the radiance the
 //! orders ≥ 2 scatter toward the eye ([`crate::render::light::shading::Shading::fluence_in`]).
 //!
@@ -32,7 +32,7 @@ use crate::render::settings::RenderSettings;
 use crate::render::surfaces::Surfaces;
 use cells::Cells;
 pub(crate) use trace::luminance;
-use trace::{Casters, PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
+use trace::{Casters, ONCE, PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
 
 /// Most cells on the fluence grid's longest side: the light grid's coarse (sky) lattice is
 /// coarsened by whole factors until it fits.
@@ -90,8 +90,9 @@ impl FluenceSettings {
     }
 }
 
-/// Fluence `φ` (RGB) and flux `F` of light scattered at least once, on the nodes of a regular
-/// grid (node-major, [`PER_CELL`] values a node).
+/// Fluence `φ` (RGB) and flux `F` of light scattered at least once (sunlight scattered exactly
+/// once apart, its fluence and flux), on the nodes of a regular grid (node-major,
+/// [`PER_CELL`] values a node).
 #[derive(Clone, Debug)]
 pub(crate) struct FluenceGrid {
     shape: GridShape,
@@ -145,7 +146,7 @@ impl FluenceGrid {
         }
     }
 
-    /// The fluence and flux at `x` (trilinear, clamped to the grid).
+    /// The fluences and fluxes at `x` (trilinear, clamped to the grid).
     #[inline]
     pub(crate) fn lookup(&self, x: Vec3A) -> MultipleLight {
         let mut v = [0.0f32; PER_CELL];
@@ -153,7 +154,8 @@ impl FluenceGrid {
         MultipleLight {
             fluence: Vec3A::new(v[0], v[1], v[2]),
             flux: Vec3A::new(v[3], v[4], v[5]),
-            sun_once: v[6],
+            sun_once: v[ONCE],
+            sun_once_flux: Vec3A::new(v[ONCE + 1], v[ONCE + 2], v[ONCE + 3]),
         }
     }
 }
@@ -231,7 +233,7 @@ fn smooth(shape: &GridShape, values: &mut [f32]) {
 /// bright parts (sunlit tops) brighten and dim ones (bases, the core) darken for `c > 0`,
 /// the light evens out for `c < 0` (Wrenninge 2015 keeps such a dial apart from the physics).
 fn contrast(sigma: &[f32], values: &mut [f32], c: f32) {
-    let lum = |v: &[f32]| luminance(Vec3A::new(v[0], v[1], v[2])) + v[6];
+    let lum = |v: &[f32]| luminance(Vec3A::new(v[0], v[1], v[2])) + v[ONCE];
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for (s, v) in sigma.iter().zip(values.chunks(PER_CELL)) {
         num += (*s * lum(v)) as f64;

@@ -96,6 +96,15 @@ fn fluence_in_a_thin_ball_matches_the_first_order_by_quadrature() {
             "φ₁ at {x}: {} against the first order {phi} ({rel:+.3})",
             got.sun_once
         );
+        // Its flux (the closure's lobe axis and mean cosine, `Shading::fluence_in`) against
+        // the first order's by quadrature: 5–9 % off (the same rim and smoothing as φ₁).
+        let rel_flux = (got.sun_once_flux - flux).length() / flux.length();
+        println!("F₁ at {x}: {rel_flux:.3} off the first order's {flux}");
+        assert!(
+            rel_flux < 0.15,
+            "F₁ at {x}: {} against the first order {flux} ({rel_flux:.3})",
+            got.sun_once_flux
+        );
         // The higher orders: a few per cent at this albedo, white.
         let rest = got.fluence.x / phi;
         assert!((0.001..0.06).contains(&rest), "orders ≥ 2 at {x}: {rest}");

@@ -10,8 +10,9 @@
 //! collision, ending by Russian roulette or when it leaves the box. Each flight after a
 //! collision adds `weight × length` to the cells it crosses (φ, RGB) and `luminance × length ×
 //! direction` (F), except a sun photon's first flight after its first collision, which adds its
-//! luminance × length to a value of its own: sunlight scattered once keeps the phase
-//! function's lobe about the sun's direction, which a lobe about the mean flux would blur.
+//! luminance × length and luminance × length × direction to values of their own: sunlight
+//! scattered once keeps the phase function's two-lobe shape, which one lobe about the mean
+//! flux of all orders would blur, and its own flux says how far it still follows the sun.
 //! Free flights are analytic cell by cell (piecewise-constant extinction).
 //!
 //! Determinism: every photon draws from its own generator (`rng::item_rng`, the scene seed,
@@ -33,9 +34,12 @@ use crate::render::light::phase::{self, basis};
 use crate::rng::{Stream, item_rng};
 
 /// Values summed per cell: φ (R, G, B) and F (x, y, z) of the light scattered at least once
-/// (but sunlight scattered exactly once), and the fluence of sunlight scattered exactly once
-/// (luminance).
-pub(crate) const PER_CELL: usize = 7;
+/// (but sunlight scattered exactly once), then from [`ONCE`] the fluence and the flux (x, y, z)
+/// of sunlight scattered exactly once (luminance).
+pub(crate) const PER_CELL: usize = 10;
+
+/// Where the once-scattered sunlight's values start in a cell's [`PER_CELL`].
+pub(crate) const ONCE: usize = 6;
 
 /// Fixed-point scale of the sums: a deposit of `weight × length` (weights relative to the
 /// largest photon weight, lengths in cells) is stored as that × 2²⁴, truncated. A cell's sum
@@ -330,14 +334,18 @@ fn path(
         let u: f32 = rng.random();
         let (wr, wl) = (w * SCALE, luminance(w) * SCALE);
         let tau = -(1.0 - u).ln();
+        let flux = d * wl;
         let next = if sun && n == 0 {
             flight(cells, pos, d, tau, |c: usize, l: f32| {
-                acc[c * PER_CELL + 6] += (wl * l) as i64;
+                let a = &mut acc[c * PER_CELL + ONCE..(c + 1) * PER_CELL];
+                a[0] += (wl * l) as i64;
+                a[1] += (flux.x * l) as i64;
+                a[2] += (flux.y * l) as i64;
+                a[3] += (flux.z * l) as i64;
             })
         } else {
-            let flux = d * wl;
             flight(cells, pos, d, tau, |c: usize, l: f32| {
-                let a = &mut acc[c * PER_CELL..(c + 1) * PER_CELL];
+                let a = &mut acc[c * PER_CELL..c * PER_CELL + ONCE];
                 a[0] += (wr.x * l) as i64;
                 a[1] += (wr.y * l) as i64;
                 a[2] += (wr.z * l) as i64;
