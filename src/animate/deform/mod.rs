@@ -30,8 +30,9 @@
 //! in every direction, while a bend presses one side of it and pulls the other).
 //!
 //! [`Deformation::with_shape_refit`] ([`shape`]) re-stretches instead a blob's axes where the
-//! anchors spread more (or less) than the affine map says; measured, it gains 0.001–0.002 of
-//! IoU on both shapes, so shots do not use it either.
+//! anchors spread more (or less) than the affine map says; measured, it gains up to 0.003 of
+//! IoU and loses none on both shapes, and shots use it (`scene::shot`): the blobs are refitted
+//! only where the surface leaves them.
 //!
 //! The per-frame cost is a few multiply-adds per anchor and a 3×3 eigen-solve per blob (and,
 //! with the refit, a lerp of two factors per blob; no solve, no search): tens of microseconds
@@ -208,8 +209,8 @@ impl Deformation {
 
     /// [`Deformation::new`] with the shape refit where the surface leaves the blobs
     /// ([`shape`]: the anchors' spread mapped instead of their least-squares affine map; `cfg`'s
-    /// `from`, `full` say where), made now on every frame of `frames`. Measured, not used by
-    /// shots (docs/MEASUREMENTS.md, "Bending").
+    /// `from`, `full` say where), made now on every frame of `frames`: what a deforming shot uses
+    /// (docs/MEASUREMENTS.md, "Bending").
     pub fn with_shape_refit(
         formed: &[Blob],
         frames: &[Vec<DVec3>],

@@ -1,6 +1,6 @@
 //! The shape refit of a carried blob where its anchors leave their affine map (issue 51,
 //! item 3; built and measured against carrying, docs/MEASUREMENTS.md, "Bending": it gains
-//! 0.001–0.002 of silhouette IoU, so shots carry only).
+//! 0.001–0.002 of silhouette IoU and loses none; what deforming shots use).
 //!
 //! The carry's map `M = (Q + λR)(P + λI)⁻¹` is the least-squares affine map of the anchors;
 //! where the surface bends across a blob no affine map fits, and the least-squares one shrinks

@@ -477,8 +477,10 @@ fn plan(scene: &Scene, mut model: BlobModel, origin: TargetOrigin) -> Result<Pre
 
 /// The deforming target's motion: the sequence placed by the scene's transform, its frames at
 /// the shot's times (`file::deforming`'s rule), anchored to the plan's formed target. The
-/// blobs are carried only: the local refit of `A`, `B` (`Deformation::with_refit`) was
-/// measured to lose silhouette IoU (docs/MEASUREMENTS.md, "Bending"), so a shot does not use it.
+/// blobs are carried, and re-stretched where the surface leaves what their affine map follows
+/// (`Deformation::with_shape_refit`, measured not to lose silhouette IoU); the local refit of
+/// `A`, `B` (`Deformation::with_refit`) was measured to lose it (docs/MEASUREMENTS.md,
+/// "Bending"), so a shot does not use that.
 fn deformation(
     scene: &Scene,
     seq: &crate::mesh::sequence::MeshSequence,
@@ -498,7 +500,8 @@ fn deformation(
     };
     let times: Vec<f64> = seq.numbers.iter().map(|n| (n - first) / shot.fps).collect();
     let formed = plan.frame(plan.timeline().frames - 1);
-    animate::Deformation::new(&formed, &frames, &times)
+    let refit = animate::deform::refit::RefitConfig::default();
+    animate::Deformation::with_shape_refit(&formed, &frames, &times, &refit)
 }
 
 /// The box the camera frames: the target's `bounds`, carried over the whole shot for a target
