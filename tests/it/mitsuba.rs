@@ -465,10 +465,10 @@ fn single_scattering_matches_mitsuba() {
     eprintln!("{json}");
     // A small run (160×90, a 96-cell grid, 64 spp; the full one, docs/MEASUREMENTS.md, gives
     // the quoted figures). On the billowy density, against Mitsuba with the script's
-    // `TwoLobe` phase function, it measures end to end 0.120, same grid 0.054, mean ratio
-    // 1.047 (full image 0.114 per pixel, mean 1.004; MS luminance 0.698 vs 0.677, base/top
-    // 0.737 vs 0.711; Mitsuba 3.6.4). Against the biased `blendphase` it had read 0.106,
-    // 0.018, 1.024: the march's sky term is a few per cent bright. At 160×90 one ray a pixel
+    // `TwoLobe` phase function, it measures end to end 0.110, same grid 0.044, mean ratio
+    // 0.995 (full image 0.105 per pixel, mean 1.006; Mitsuba 3.6.4) with the sky depths shifted
+    // one light-grid cell (at two: 0.120, 0.054, 1.047, the sky term a few per cent bright).
+    // Against the biased `blendphase` it had read 0.106, 0.018, 1.024. At 160×90 one ray a pixel
     // point-samples billows Mitsuba's box filter averages, most of the end-to-end figure. The
     // bars leave room for the reference's noise and catch a regression of the light model
     // (before the sky cells this run measured 0.205).
@@ -619,19 +619,20 @@ fn environment_single_scattering_matches_mitsuba() {
         (ref_ratio - 1.0).abs() < 0.05,
         "Reference through the blobs, mean ratio {ref_ratio}"
     );
-    // The march (`Final`) is too bright under this sky (the goal is 5 % per pixel): same grid
-    // 0.132 (mean 1.115), end to end 0.275 (mean 1.224) at 160×90; the light grid's sky depths
-    // let through more than exact depths do (docs/MEASUREMENTS.md). The bars hold those
-    // figures × 1.2 and the background.
+    // The march (`Final`) against it (the goal is 5 % per pixel): same grid 0.071 (mean 1.040),
+    // end to end 0.145 (mean 1.007) at 160×90 with the sky depths shifted one light-grid cell
+    // (0.132 and 0.275, means 1.115 and 1.224, at the two cells shipped before; the rest is the
+    // light grid's resolution: docs/MEASUREMENTS.md). The bars hold those figures × 1.25 and
+    // the background: a shift back to two cells fails them.
     let same = number(&json, "ss_same_grid_rel_rmse");
-    assert!(same < 0.16, "same-grid single scattering differs by {same}");
+    assert!(same < 0.09, "same-grid single scattering differs by {same}");
     let rmse = number(&json, "ss_rel_rmse");
     assert!(
-        rmse < 0.33,
+        rmse < 0.18,
         "single scattering differs from Mitsuba by {rmse}"
     );
     let ratio = number(&json, "ss_mean_ratio");
-    assert!((ratio - 1.0).abs() < 0.27, "mean ratio {ratio}");
+    assert!((ratio - 1.0).abs() < 0.06, "mean ratio {ratio}");
     let bg = number(&json, "background_rel_error");
     assert!(bg < 0.01, "the background differs by {bg}");
     // NEPHELE_MITSUBA_KEEP: leave the folder for `tools/mitsuba_compare.py --reuse`.

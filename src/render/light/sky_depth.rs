@@ -126,8 +126,12 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 pub(crate) const SKY_SPACING: usize = 3;
 
 /// Shift of the stored sky depths toward the light, in cells of the light grid (not of the sky
-/// grid: see [`SKY_SPACING`]; two, one sky cell when that was twice as coarse; see `sweep`).
-pub(crate) const SURFACE_SHIFT: f32 = 2.0;
+/// grid: see [`SKY_SPACING`]; see `sweep`). One: against Mitsuba with the exact two-lobe phase
+/// (docs/MEASUREMENTS.md, "Checked against Mitsuba 3") the plate's light at 640×360 came out
+/// 10.0 % per pixel (18.1 % at two, which had been chosen against `blendphase` references that
+/// were themselves too bright under sky light) and the duck's sky-lit single scattering 11.0 %
+/// (12.0 %) at 160×90; none at all (zero) left the plate's light 17 % dark.
+pub(crate) const SURFACE_SHIFT: f32 = 1.0;
 
 /// Optical depth from every node toward the light (light travelling along unit `dir`), stored
 /// `shift` (world units) toward the light and quantized, into `out.depths`.
