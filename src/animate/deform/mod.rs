@@ -507,6 +507,23 @@ mod tests {
     use super::*;
     use crate::animate::sphere_blob;
 
+    /// A row of overlapping spheres and points on the surface of the capsule around
+    /// them (the refits' tests' shape).
+    pub(super) fn capsule() -> (Vec<Blob>, Vec<DVec3>) {
+        let blobs: Vec<Blob> = (0..5)
+            .map(|k| sphere_blob(DVec3::new(0.0, k as f64 * 0.3 - 0.6, 0.0), 0.25))
+            .collect();
+        let mut points = Vec::new();
+        for ring in 0..=40 {
+            let y = -0.85 + 1.7 * ring as f64 / 40.0;
+            for side in 0..24 {
+                let a = std::f64::consts::TAU * side as f64 / 24.0;
+                points.push(DVec3::new(0.25 * a.cos(), y, 0.25 * a.sin()));
+            }
+        }
+        (blobs, points)
+    }
+
     /// Points of a ball of radius 1 (a coarse lattice).
     fn ball() -> Vec<DVec3> {
         let mut p = Vec::new();

@@ -150,29 +150,12 @@ impl Deformation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::animate::sphere_blob;
-
-    /// Points on a tube of radius 0.25 along y, and a row of spheres in it.
-    fn tube() -> (Vec<Blob>, Vec<DVec3>) {
-        let blobs: Vec<Blob> = (0..5)
-            .map(|k| sphere_blob(DVec3::new(0.0, k as f64 * 0.3 - 0.6, 0.0), 0.25))
-            .collect();
-        let mut points = Vec::new();
-        for ring in 0..=40 {
-            let y = -0.85 + 1.7 * ring as f64 / 40.0;
-            for side in 0..24 {
-                let a = std::f64::consts::TAU * side as f64 / 24.0;
-                points.push(DVec3::new(0.25 * a.cos(), y, 0.25 * a.sin()));
-            }
-        }
-        (blobs, points)
-    }
 
     /// A rigid motion corrects nothing; a bend about the middle corrects the middle blob, and
     /// the carried-only deformation is the plain carry.
     #[test]
     fn a_rigid_motion_is_left_and_a_bend_is_reshaped() {
-        let (blobs, rest) = tube();
+        let (blobs, rest) = super::super::tests::capsule();
         let turn = DMat3::from_axis_angle(DVec3::new(0.3, 1.0, -0.2).normalize(), 0.9);
         let rigid: Vec<DVec3> = rest.iter().map(|&p| turn * p + DVec3::X).collect();
         // A kink: the upper half folds over by 100° about the middle (as the A, B refit's test).
