@@ -373,7 +373,6 @@ impl Deformation {
             if let (Some(sa), Some(sb)) = (self.shape.get(a), self.shape.get(b)) {
                 let (p, q) = (sa[i], sb[i]);
                 map.linear += p.linear + (q.linear - p.linear) * u;
-                map.displacement += p.shift + (q.shift - p.shift) * u;
             }
             map.carry(blob);
             if !self.refit.is_empty() {

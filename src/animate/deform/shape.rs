@@ -31,22 +31,22 @@ use rayon::prelude::*;
 use super::refit::{RefitConfig, weight};
 use super::{Deformation, outer};
 
+use crate::blobby::Blob;
+use crate::decompose::eigen::symmetric_eigen;
+
 /// An axis of a blob is re-stretched only where the anchors' rest variance along it is at least
 /// this share of their widest.
 const SPANNED: f64 = 0.25;
 
 /// The most the shape refit changes a semi-axis from the carry's: by this factor either way.
 const MAX_GAIN: f64 = 1.5;
-use crate::blobby::Blob;
-use crate::decompose::eigen::symmetric_eigen;
 
-/// A blob's shape correction on one frame: added to the carry's `M` and centre.
+/// A blob's shape correction on one frame: added to the carry's `M` (the centre stays the
+/// carry's).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShapeCorrection {
     /// `w (S − M)`.
     pub linear: DMat3,
-    /// `w (c'_S − c'_M)`.
-    pub shift: DVec3,
 }
 
 impl Default for ShapeCorrection {
@@ -54,7 +54,6 @@ impl Default for ShapeCorrection {
     fn default() -> Self {
         ShapeCorrection {
             linear: DMat3::ZERO,
-            shift: DVec3::ZERO,
         }
     }
 }
@@ -142,7 +141,6 @@ impl Deformation {
         }
         ShapeCorrection {
             linear: (shape - m) * w,
-            shift: DVec3::ZERO,
         }
     }
 }

@@ -43,6 +43,7 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 
 use crate::render::camera::{Frustum, Ray};
+use crate::render::light::phase::basis;
 use crate::render::light::sky_dome::SkyDome;
 use crate::render::light::sky_view::table_dir;
 use crate::render::medium::Medium;
@@ -306,17 +307,6 @@ fn sky_quadrature(dome: &SkyDome) -> Vec<(Vec3A, Vec3A)> {
         .collect()
 }
 
-/// Two unit vectors completing unit `w` to an orthonormal basis (Duff et al. 2017).
-fn basis(w: Vec3A) -> (Vec3A, Vec3A) {
-    let sign = 1.0f32.copysign(w.z);
-    let a = -1.0 / (sign + w.z);
-    let b = w.x * w.y * a;
-    (
-        Vec3A::new(1.0 + sign * w.x * w.x * a, sign * b, -sign * w.x),
-        Vec3A::new(b, sign + w.y * w.y * a, -w.y),
-    )
-}
-
 impl Extinction {
     /// `medium`'s extinction at the nodes of a lattice of [`CELLS`] cells on the longest side
     /// of its bounds (point samples, only inside its intervals along each row); `None` when it
@@ -414,28 +404,5 @@ impl Extinction {
             s += len;
         }
         tau
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The cone's basis is orthonormal about any axis.
-    #[test]
-    fn the_basis_is_orthonormal() {
-        for w in [
-            Vec3A::Y,
-            Vec3A::NEG_Z,
-            Vec3A::new(0.3, -0.8, 0.52).normalize(),
-        ] {
-            let (u, v) = basis(w);
-            for (a, b) in [(u, v), (u, w), (v, w)] {
-                assert!(a.dot(b).abs() < 1e-6);
-            }
-            for a in [u, v] {
-                assert!((a.length() - 1.0).abs() < 1e-6);
-            }
-        }
     }
 }
