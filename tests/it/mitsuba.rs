@@ -542,7 +542,14 @@ fn environment_single_scattering_matches_mitsuba() {
     let Some(py) = python() else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("nephele-mitsuba-env-{}", std::process::id()));
+    // NEPHELE_MITSUBA_ENV_DIR: a fixed folder (under the temp dir) whose Mitsuba renders are
+    // reused by the next run with the same one (experiments on nephele's side alone).
+    let fixed = std::env::var("NEPHELE_MITSUBA_ENV_DIR").ok();
+    let dir = std::env::temp_dir().join(
+        fixed
+            .clone()
+            .unwrap_or_else(|| format!("nephele-mitsuba-env-{}", std::process::id())),
+    );
     std::fs::create_dir_all(&dir).unwrap();
     let exr = dir.join("plate.exr");
     // Texel (x, y) at u = (x + ½)/W and θ = π·y/(H − 1), as Mitsuba evaluates the map.
@@ -595,7 +602,7 @@ fn environment_single_scattering_matches_mitsuba() {
             }
         },
     );
-    let json = compare_with(&py, &dir, 256, None, false, true);
+    let json = compare_with(&py, &dir, 256, None, fixed.is_some(), true);
     eprintln!("{json}\n(inputs in {})", dir.display());
     // Measured (docs/MEASUREMENTS.md, "The plate's light"), against Mitsuba with the
     // script's `TwoLobe` (the `blendphase` it used before over-counted the sky by 12–16 % on
@@ -636,7 +643,7 @@ fn environment_single_scattering_matches_mitsuba() {
     let bg = number(&json, "background_rel_error");
     assert!(bg < 0.01, "the background differs by {bg}");
     // NEPHELE_MITSUBA_KEEP: leave the folder for `tools/mitsuba_compare.py --reuse`.
-    if std::env::var("NEPHELE_MITSUBA_KEEP").is_err() {
+    if std::env::var("NEPHELE_MITSUBA_KEEP").is_err() && fixed.is_none() {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

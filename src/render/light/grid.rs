@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::render::light::fluence::{FluenceGrid, FluenceSettings, MAX_FLUENCE_CELLS};
 use crate::render::light::sky_cells::SKY_DIRECTIONS;
-use crate::render::light::sky_depth::{SKY_DEPTH_STEP, SkyWork, block_sky, sky_depths};
+use crate::render::light::sky_depth::{SkyWork, block_sky, depth_of, sky_depths};
 use crate::render::light::sun_depth::SunGrid;
 use crate::render::light::{LightDepths, MultipleLight, ShadowDepths};
 use crate::render::medium::Medium;
@@ -36,7 +36,8 @@ pub struct LightGrid {
     sun: SunGrid,
     sky_shape: GridShape,
     sky_inv_h: f32,
-    /// [`SKY_DIRECTIONS`] depths per coarse node, node-major, in steps of [`SKY_DEPTH_STEP`].
+    /// [`SKY_DIRECTIONS`] depths per coarse node, node-major, as their cube roots
+    /// ([`crate::render::light::sky_depth::quantize_depth`]).
     sky: Vec<u16>,
     /// Nodes of the world grid the sky's is [`SKY_SPACING`](crate::render::light::sky_depth::SKY_SPACING) times as coarse as.
     #[cfg(test)]
@@ -175,8 +176,9 @@ impl LightGrid {
         let sun = self.sun.lookup(x);
         let mut sky = [0.0f32; SKY_DIRECTIONS];
         trilinear::<SKY_DIRECTIONS, u16>(&self.sky_shape, self.sky_inv_h, &self.sky, x, &mut sky);
+        // Interpolated as cube roots (`quantize_depth`: the surface's kink).
         for t in &mut sky {
-            *t *= SKY_DEPTH_STEP;
+            *t = depth_of(*t);
         }
         LightDepths { sun, sky }
     }
@@ -232,7 +234,6 @@ fn fluence_lattice(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::light::sky_depth::SURFACE_SHIFT;
 
     /// A ball of radius 1 and extinction 3 at the origin, sampled on a 64-cell grid.
     fn ball_grid(sun: Vec3A) -> LightGrid {
@@ -258,10 +259,6 @@ mod tests {
                 c.sky[crate::render::light::sky_cells::UP],
                 c.sky[crate::render::light::sky_cells::DOWN],
             );
-            // The sky's depths are stored SURFACE_SHIFT cells (of the 64 over the box of side
-            // 2) toward the light: the chord less σ·shift.
-            let sky_shift = SURFACE_SHIFT * 3.0 * (2.0 / 64.0);
-            let (tu, td) = (tu + sky_shift, td + sky_shift);
             assert!((td / 3.0 - 1.0).abs() < 0.04, "τ_down at centre {td}");
             assert!((ts / 3.0 - 1.0).abs() < 0.04, "τ_sun at centre {ts}");
             assert!((tu / 3.0 - 1.0).abs() < 0.04, "τ_up at centre {tu}");

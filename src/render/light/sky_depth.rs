@@ -4,7 +4,9 @@
 //! Each sky depth is built by one sweep through the grid along the light's dominant axis: a node's
 //! depth is the depth of the point one slice back toward the light (bilinear in that slice: the
 //! fractional offset is the same for every node) plus the trapezoid of `σ_t` over the step.
-//! The repeated bilinear interpolation blurs shadows by about a cell, which suits clouds.
+//! (The 26 cells' directions are lattice directions: the offset is whole, and the sweep is exact
+//! along the lattice's lines.) Each depth is stored as its cube root ([`quantize_depth`]), so
+//! that the lookup's trilinear interpolation does not make the cloud's lit side too dark.
 //!
 //! In: the light grid's world lattice and the sun grid's extinction samples (the medium is
 //! sampled once a frame, for the sun). Out: [`SKY_DIRECTIONS`] quantized depths per coarse
@@ -37,18 +39,42 @@ pub(crate) struct Sweep {
 /// Sky sweeps whose buffers exist at once (the rest wait): bounds the build's memory.
 const SWEEPS_AT_ONCE: usize = 7;
 
-/// Resolution of the stored sky depths (optical depth per `u16` step; a power of two, so the
-/// scaling is exact): 2⁻⁹ up to a depth of 128, where even the weakest multiple-scattering
-/// octave's transmittance (`e^{−τ/8}` with four octaves) is 10⁻⁷. Half the memory of `f32` (the
-/// sky's 26 depths a node were the light grid's largest buffer) for a depth error of at most
-/// 10⁻³, a transmittance error of 0.1 %.
-pub(crate) const SKY_DEPTH_STEP: f32 = 1.0 / 512.0;
+/// Resolution of the stored sky depths' cube roots (`∛τ` per `u16` step; a power of two, so
+/// the scaling is exact): 2⁻¹³, up to a depth of 512 (`∛τ` 8), far past where even the weakest
+/// multiple-scattering octave's transmittance (`e^{−τ/8}` with four octaves) is 10⁻⁷. Half the
+/// memory of `f32` (the sky's 26 depths a node were the light grid's largest buffer); the depth
+/// error, `3∛τ²` times half a step, is 2·10⁻⁴ at `τ` 1 and 10⁻³ at 4 (a transmittance error
+/// below 0.1 % where any light gets through).
+pub(crate) const SKY_ROOT_STEP: f32 = 1.0 / 8192.0;
 
-/// `τ ≥ 0` in steps of [`SKY_DEPTH_STEP`], rounded, saturating at the largest step (`as`
-/// saturates; no call to `round`, which is a library call without SSE4.1).
+/// `τ ≥ 0` stored as `∛τ` in steps of [`SKY_ROOT_STEP`], rounded, saturating at the largest
+/// step (`as` saturates; no call to `round`, which is a library call without SSE4.1);
+/// [`depth_of`] takes it back.
+///
+/// Why the cube root: a sky depth is 0 outside the cloud and grows inside, and the lookup
+/// interpolates it trilinearly over a sky cell three light-grid cells wide, so between a node
+/// outside and one inside it reads the depth too deep (up to `σ·h/4` at the surface, `h` a cell
+/// of the sky's grid): the cloud's lit side came out too dark. Interpolated as `∛τ` the
+/// kink at the surface is mostly gone, and deep inside (`τ` slowly varying over a cell) the
+/// root's interpolation is as good as the depth's. It replaces the shift of the stored depths
+/// toward the light that made up for it before (`SURFACE_SHIFT`, one light-grid cell), which
+/// also made the depths everywhere else too shallow, by `σ` times that cell. Measured against Mitsuba 3
+/// (docs/MEASUREMENTS.md, "The plate's light"; `environment_single_scattering_matches_mitsuba`,
+/// 640×360): the march on Mitsuba's grid 8.6 % → 6.6 % per pixel (mean 1.042 → 1.011), end to
+/// end 10.0 % → 7.5 % (1.041 → 1.008); with the depths marched exactly it reads 5.6 % at
+/// 160×90, where the root reads 5.8 % (the shift 7.1 %). Square roots (6.7 %, 8.0 % at
+/// 640×360) leave more of the bias, the shift halved (7.7 %, 9.4 %) more still.
 #[inline]
 pub(crate) fn quantize_depth(tau: f32) -> u16 {
-    (tau * (1.0 / SKY_DEPTH_STEP) + 0.5) as u16
+    (tau.cbrt() * (1.0 / SKY_ROOT_STEP) + 0.5) as u16
+}
+
+/// The depth of an interpolated stored value `q` (in steps of [`SKY_ROOT_STEP`] of `∛τ`,
+/// [`quantize_depth`]).
+#[inline]
+pub(crate) fn depth_of(q: f32) -> f32 {
+    let r = q * SKY_ROOT_STEP;
+    r * r * r
 }
 
 /// The sky's depths over the world grid `shape` coarsened [`SKY_SPACING`] times (its extinction
@@ -61,7 +87,6 @@ pub(crate) fn sky_depths(
     sky: &mut Vec<u16>,
 ) -> GridShape {
     let sky_shape = coarse_extinction(shape, sun, &mut work.coarse);
-    let shift = SURFACE_SHIFT * shape.h;
     let n = sky_shape.len();
     // Every value is written below: no clearing.
     sky.resize(n * SKY_DIRECTIONS, 0);
@@ -75,7 +100,7 @@ pub(crate) fn sky_depths(
         work.sweeps
             .par_iter_mut()
             .zip(batch)
-            .for_each(|(tau, &c)| sweep(&sky_shape, coarse, -dirs[c], shift, tau));
+            .for_each(|(tau, &c)| sweep(&sky_shape, coarse, -dirs[c], tau));
         let sweeps = &work.sweeps[..batch.len()];
         sky.par_chunks_mut(SKY_DIRECTIONS)
             .enumerate()
@@ -120,22 +145,16 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 /// third as many sweep steps; against Mitsuba (the shots of docs/MEASUREMENTS.md, "Checked
 /// against Mitsuba 3", 256-spp references) the side-lit duck's single scattering came out
 /// 4.93 % (4.95 % at two) and the backlit golden hour 9.30 % (9.38 %), the multiple-scattering
-/// means and base/top within 0.001 of two's — with the surface shift ([`SURFACE_SHIFT`]) kept
+/// means and base/top within 0.001 of two's — with the surface shift (`SURFACE_SHIFT`, since removed) kept
 /// in world units. Kept in world units is the point: a shift of one sky cell at three made the
-/// duck 2 % too bright (5.9 %).
+/// duck 2 % too bright (5.9 %). (The shift is gone since the depths are stored as cube roots,
+/// [`quantize_depth`]; two with the roots measured 6.6 % and 7.4 % on the plate's light at
+/// 640×360 against three's 6.6 % and 7.5 %, for 3.4 times the sweeps' nodes: not taken.)
 pub(crate) const SKY_SPACING: usize = 3;
 
-/// Shift of the stored sky depths toward the light, in cells of the light grid (not of the sky
-/// grid: see [`SKY_SPACING`]; see `sweep`). One: against Mitsuba with the exact two-lobe phase
-/// (docs/MEASUREMENTS.md, "Checked against Mitsuba 3") the plate's light at 640×360 came out
-/// 10.0 % per pixel (18.1 % at two, which had been chosen against `blendphase` references that
-/// were themselves too bright under sky light) and the duck's sky-lit single scattering 11.0 %
-/// (12.0 %) at 160×90; none at all (zero) left the plate's light 17 % dark.
-pub(crate) const SURFACE_SHIFT: f32 = 1.0;
-
-/// Optical depth from every node toward the light (light travelling along unit `dir`), stored
-/// `shift` (world units) toward the light and quantized, into `out.depths`.
-fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, shift: f32, out: &mut Sweep) {
+/// Optical depth from every node toward the light (light travelling along unit `dir`),
+/// quantized ([`quantize_depth`]), into `out.depths`.
+fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, out: &mut Sweep) {
     let d = [dir.x, dir.y, dir.z];
     // k: the axis the light moves along fastest; a, b: the other two.
     let k = (0..3)
@@ -230,20 +249,12 @@ fn sweep(shape: &GridShape, sigma: &[f32], dir: Vec3A, shift: f32, out: &mut Swe
                 }
             }
         }
-        // Store the depth `shift` toward the light. Two biases make a sky cell's depth too
-        // deep near the surface: trilinear interpolation of a depth that is 0 outside and
-        // grows inside, and the cell's single direction standing for a cone of ±20° (the
-        // transmittance averaged over the cone is higher). Calibrated against Mitsuba with the
-        // light depths marched exactly: the sky's share of the side-lit duck came out 3.5 %
-        // dark without the shift (mean ratio 0.967, 4.4 % relative RMSE), 0.995 and 2.6 % with
-        // one cell of a grid twice as coarse as the sun's (the `shift` kept since); the backlit
-        // golden-hour shot does not move (docs/MEASUREMENTS.md, "Checked against Mitsuba 3").
-        // The sun's light-aligned grid needs none.
+        // Stored as cube roots: the lookup's trilinear interpolation of a depth that is 0
+        // outside and grows inside reads it too deep near the surface ([`quantize_depth`]).
         for ib in 0..n[b] {
             for ia in 0..n[a] {
                 let idx = ia * stride[a] + ib * stride[b] + slice;
-                let t = tau[ia + n[a] * ib];
-                depths[idx] = quantize_depth((t - sigma[idx] * shift).max(0.0));
+                depths[idx] = quantize_depth(tau[ia + n[a] * ib]);
             }
         }
         std::mem::swap(back_tau, tau);
