@@ -145,11 +145,12 @@ fn coarse_extinction(shape: &GridShape, sun: &SunGrid, out: &mut Vec<f32>) -> Gr
 /// third as many sweep steps; against Mitsuba (the shots of docs/MEASUREMENTS.md, "Checked
 /// against Mitsuba 3", 256-spp references) the side-lit duck's single scattering came out
 /// 4.93 % (4.95 % at two) and the backlit golden hour 9.30 % (9.38 %), the multiple-scattering
-/// means and base/top within 0.001 of two's — with the surface shift (`SURFACE_SHIFT`, since removed) kept
-/// in world units. Kept in world units is the point: a shift of one sky cell at three made the
-/// duck 2 % too bright (5.9 %). (The shift is gone since the depths are stored as cube roots,
-/// [`quantize_depth`]; two with the roots measured 6.6 % and 7.4 % on the plate's light at
-/// 640×360 against three's 6.6 % and 7.5 %, for 3.4 times the sweeps' nodes: not taken.)
+/// means and base/top within 0.001 of two's — with the surface shift (`SURFACE_SHIFT`, since
+/// removed) kept in world units. Kept in world units is the point: a shift of one sky cell at
+/// three made the duck 2 % too bright (5.9 %). (The shift is gone since the depths are stored
+/// as cube roots, [`quantize_depth`]. On the plate's light at 640×360, same grid and end to
+/// end, two with square roots stored measured 6.6 % and 7.4 %, against 6.7 % and 8.0 % at
+/// three; three with cube roots 6.6 % and 7.5 %: not worth 3.4 times the sweeps' nodes.)
 pub(crate) const SKY_SPACING: usize = 3;
 
 /// Optical depth from every node toward the light (light travelling along unit `dir`),
