@@ -207,6 +207,18 @@ fn write_inputs_with(
     }
     adjust(&mut s);
     std::fs::create_dir_all(dir).unwrap();
+    // NEPHELE_MITSUBA_MS_ONLY (experiments on the multiple scattering, with a folder of an
+    // earlier run): only nephele's full image is rendered again; the grid and the rest are kept.
+    if std::env::var("NEPHELE_MITSUBA_MS_ONLY").is_ok() && dir.join("grid.vol").exists() {
+        s.cloud.multiple_scattering = true;
+        let start = Instant::now();
+        let m = BlobMedium::new(&s, &blobs);
+        let lg = LightGrid::for_frame(&s, &m.for_light_grid(&s));
+        let f = render_medium(&s, &m, &lg, &Film::default());
+        let t = start.elapsed().as_secs_f64();
+        write_f32(&dir.join("nephele_ms.f32"), composite(&s, &f));
+        return (0.0, t);
+    }
     // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
     let m = BlobMedium::new(&s, &blobs);
     let (lo, hi) = m.bounds().expect("a live cloud");

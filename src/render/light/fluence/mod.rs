@@ -42,6 +42,10 @@ pub(crate) const MAX_FLUENCE_CELLS: usize = 40;
 /// noise).
 pub(crate) const SMOOTHING_PASSES: usize = 1;
 
+/// Values stored a node: the [`PER_CELL`] sums, each times the node's lookup weight
+/// ([`lookup_weights`]), then that weight.
+const STORED: usize = PER_CELL + 1;
+
 /// What a frame's fluence grid is made of besides the medium.
 #[derive(Clone, Debug)]
 pub(crate) struct FluenceSettings {
@@ -91,8 +95,8 @@ impl FluenceSettings {
 }
 
 /// Fluence `φ` (RGB) and flux `F` of light scattered at least once (sunlight scattered exactly
-/// once apart, its fluence and flux), on the nodes of a regular grid (node-major,
-/// [`PER_CELL`] values a node).
+/// once apart, its fluence and flux), on the nodes of a regular grid (node-major, [`STORED`]
+/// values a node: each weighted by the node's extinction, [`lookup_weights`]).
 #[derive(Clone, Debug)]
 pub(crate) struct FluenceGrid {
     shape: GridShape,
@@ -132,7 +136,18 @@ impl FluenceGrid {
             });
         let (sums, unit) = trace::trace(&cells, &sources, s.albedo, s.g, s.seed, casters.as_ref());
         let k = unit / SCALE;
-        let mut values: Vec<f32> = sums.iter().map(|&v| v as f32 * k).collect();
+        let weights = lookup_weights(&sigma);
+        let mut values = vec![0.0f32; shape.len() * STORED];
+        for ((out, sum), &w) in values
+            .chunks_exact_mut(STORED)
+            .zip(sums.chunks_exact(PER_CELL))
+            .zip(&weights)
+        {
+            for (o, &v) in out.iter_mut().zip(sum) {
+                *o = v as f32 * k * w;
+            }
+            out[PER_CELL] = w;
+        }
         for _ in 0..SMOOTHING_PASSES {
             smooth(&shape, &mut values);
         }
@@ -146,11 +161,17 @@ impl FluenceGrid {
         }
     }
 
-    /// The fluences and fluxes at `x` (trilinear, clamped to the grid).
+    /// The fluences and fluxes at `x`: trilinear, each node weighed by its [`lookup_weights`]
+    /// (clamped to the grid).
     #[inline]
     pub(crate) fn lookup(&self, x: Vec3A) -> MultipleLight {
-        let mut v = [0.0f32; PER_CELL];
-        trilinear::<PER_CELL, f32>(&self.shape, self.inv_h, &self.values, x, &mut v);
+        let mut v = [0.0f32; STORED];
+        trilinear::<STORED, f32>(&self.shape, self.inv_h, &self.values, x, &mut v);
+        // The weights are at least 1: no division by zero.
+        let k = 1.0 / v[PER_CELL];
+        for a in &mut v[..PER_CELL] {
+            *a *= k;
+        }
         MultipleLight {
             fluence: Vec3A::new(v[0], v[1], v[2]),
             flux: Vec3A::new(v[3], v[4], v[5]),
@@ -158,6 +179,23 @@ impl FluenceGrid {
             sun_once_flux: Vec3A::new(v[ONCE + 1], v[ONCE + 2], v[ONCE + 3]),
         }
     }
+}
+
+/// Each node's weight in the lookup's interpolation: `1 + σ/σ_max` (`σ` its extinction,
+/// `σ_max` the grid's largest; all ones for an empty grid).
+///
+/// Why: a point of the cloud's thin surface layer lies between nodes inside the cloud and
+/// nodes outside it, whose fluence is the light leaving the cloud (and the cell-averaged
+/// fluence of a cell the surface only grazes); the scattering there needs the fluence inside
+/// the cloud. The extinction-weighted mean (`Σ wσφ / Σ wσ`, what a cell's scattering integral
+/// needs) leans fully on the dense nodes and over-brightens the shadowed faces of a thick cloud
+/// (their interior's fluence is higher than at their surface); halfway between it and plain
+/// trilinear came out best against Mitsuba's full transport on the README's three shots
+/// (docs/MEASUREMENTS.md, "Multiple scattering: the fluence grid").
+fn lookup_weights(sigma: &[f32]) -> Vec<f32> {
+    let max = sigma.iter().fold(0.0f32, |a, &b| a.max(b));
+    let inv = if max > 0.0 { 1.0 / max } else { 0.0 };
+    sigma.iter().map(|&s| 1.0 + s.max(0.0) * inv).collect()
 }
 
 /// `shape` and its node values `sigma` coarsened by the smallest whole factor that brings the
@@ -204,7 +242,8 @@ fn coarsen(shape: &GridShape, sigma: &[f32], max: usize) -> (GridShape, Vec<f32>
 }
 
 /// One pass of the `[1 2 1] / 4` filter along x, y and z over every value of the grid (edges
-/// clamped).
+/// clamped): the weighted sums and their weights alike, so the lookup's ratio is a weighted
+/// smoothing of the fluence.
 fn smooth(shape: &GridShape, values: &mut [f32]) {
     let [nx, ny, nz] = shape.dims;
     let stride = [1, nx, nx * ny];
@@ -216,11 +255,11 @@ fn smooth(shape: &GridShape, values: &mut [f32]) {
             let c = (node / s) % n[axis];
             let lo = if c > 0 { node - s } else { node };
             let hi = if c + 1 < n[axis] { node + s } else { node };
-            for v in 0..PER_CELL {
-                tmp[node * PER_CELL + v] = 0.25
-                    * (values[lo * PER_CELL + v]
-                        + 2.0 * values[node * PER_CELL + v]
-                        + values[hi * PER_CELL + v]);
+            for v in 0..STORED {
+                tmp[node * STORED + v] = 0.25
+                    * (values[lo * STORED + v]
+                        + 2.0 * values[node * STORED + v]
+                        + values[hi * STORED + v]);
             }
         }
         values.copy_from_slice(&tmp);
@@ -233,9 +272,11 @@ fn smooth(shape: &GridShape, values: &mut [f32]) {
 /// bright parts (sunlit tops) brighten and dim ones (bases, the core) darken for `c > 0`,
 /// the light evens out for `c < 0` (Wrenninge 2015 keeps such a dial apart from the physics).
 fn contrast(sigma: &[f32], values: &mut [f32], c: f32) {
-    let lum = |v: &[f32]| luminance(Vec3A::new(v[0], v[1], v[2])) + v[ONCE];
+    // The stored values are weighted: divide by the node's weight (the last value).
+    let lum =
+        |v: &[f32]| (luminance(Vec3A::new(v[0], v[1], v[2])) + v[ONCE]) / v[PER_CELL].max(1e-30);
     let (mut num, mut den) = (0.0f64, 0.0f64);
-    for (s, v) in sigma.iter().zip(values.chunks(PER_CELL)) {
+    for (s, v) in sigma.iter().zip(values.chunks(STORED)) {
         num += (*s * lum(v)) as f64;
         den += *s as f64;
     }
@@ -243,11 +284,11 @@ fn contrast(sigma: &[f32], values: &mut [f32], c: f32) {
         return;
     }
     let mean = (num / den) as f32;
-    for v in values.chunks_mut(PER_CELL) {
+    for v in values.chunks_mut(STORED) {
         let l = lum(v);
         if l > 0.0 {
             let k = (l / mean).powf(c);
-            for x in v.iter_mut() {
+            for x in v[..PER_CELL].iter_mut() {
                 *x *= k;
             }
         }
