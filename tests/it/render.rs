@@ -412,17 +412,18 @@ fn fluence_frames_are_pinned_reused_and_thread_count_independent() {
 /// Hash of the 64×36 frame of `fluence_frames_are_pinned_reused_and_thread_count_independent`
 /// (the test cloud at `Final`: the fluence grid's multiple scattering). Part of the
 /// render-version fingerprint, as [`PINNED`].
-pub(crate) const FLUENCE_PINNED: u64 = 0x6092_4b1d_5601_c7a9;
+pub(crate) const FLUENCE_PINNED: u64 = 0x0fa6_38a7_eb82_f615;
 
 /// Hash of the 64×36 frame of `seeded_frame_is_pinned_and_thread_count_independent` (update
 /// deliberately when the renderer's output changes, with the Mitsuba figures of
 /// docs/MEASUREMENTS.md, "Checked against Mitsuba 3", re-measured; last: the billows' band
 /// bounded by the lift of the largest push, so the march steps coarsely where no billow top can
-/// reach; then the sky depths' shift of one light-grid cell, render version 5). Part of the
+/// reach; then the sky depths' shift of one light-grid cell, render version 5; the sky depths stored
+/// as cube roots, render version 6). Part of the
 /// render-version fingerprint
 /// (`scene::pinned_hashes_move_only_with_the_render_version`): a new value needs a new
 /// `nephele::RENDER_VERSION`.
-pub(crate) const PINNED: u64 = 0x2320_55b6_7514_356d;
+pub(crate) const PINNED: u64 = 0x0f99_c9e6_319b_623d;
 
 #[test]
 fn exr_reads_back_with_channels_and_values() {
