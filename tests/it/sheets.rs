@@ -1,6 +1,8 @@
 //! Picture sheets of every builtin scene (docs/MEASUREMENTS.md, "The cloud look"; the README
 //! shows some): an early, a middle and the final frame side by side in
-//! `renders/sheet-<scene>.png`, and the golden-hour backlit frame `renders/duck-golden-hour.png`.
+//! `renders/sheet-<scene>.png`, and the golden-hour backlit frame `renders/duck-golden-hour.png`;
+//! and the README's multiple-scattering sheet, `renders/sheet-multiple-scattering.png` (the
+//! finished duck, golden hour and cumulus-to-duck: the octaves above, the fluence grid below).
 //! Scenes whose target is unavailable (bunny and horse need `../shared/models`) are skipped with
 //! a message. Re-run after changing the look or the animation:
 //!
@@ -70,5 +72,50 @@ fn sheets() {
     let golden = frames(&repo.join("scenes/duck-golden-hour.ron"), &|n| vec![n]).unwrap();
     let path = repo.join("renders/duck-golden-hour.png");
     golden[0].save(&path).unwrap();
+    println!("{}", path.display());
+}
+
+/// The last frame of each of `scenes`, rendered twice: with the octaves (`quality.ms_photons`
+/// 0, what `Preview` uses) in the top row and as the scene asks (the fluence grid at `Final`
+/// and `Production`) in the bottom row.
+#[test]
+#[ignore = "writes renders/sheet-multiple-scattering.png: see the module doc"]
+fn multiple_scattering_sheet() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenes = ["duck-diffusion", "duck-golden-hour", "cumulus-to-duck"];
+    let mut rows: [Vec<image::RgbImage>; 2] = [Vec::new(), Vec::new()];
+    for name in scenes {
+        let scene = load_scene(&repo.join(format!("scenes/{name}.ron"))).unwrap();
+        let opts = RenderOptions {
+            output: Some(std::env::temp_dir().join("nephele-sheets")),
+            ..RenderOptions::default()
+        };
+        let shot = Shot::open(scene, &opts).unwrap();
+        let k = shot.index(shot.total());
+        let blobs = shot.blobs(k).unwrap();
+        let settings = shot.settings(k).unwrap();
+        let mut octaves = settings.clone();
+        octaves.quality.ms_photons = 0;
+        for (row, s) in rows.iter_mut().zip([&octaves, &settings]) {
+            row.push(output::tonemapped(
+                &nephele::render::render_frame(s, &blobs),
+                s,
+            ));
+        }
+    }
+    let (w, h) = rows[0][0].dimensions();
+    let mut sheet = image::RgbImage::new(w * scenes.len() as u32, 2 * h);
+    for (r, row) in rows.iter().enumerate() {
+        for (i, img) in row.iter().enumerate() {
+            image::imageops::replace(
+                &mut sheet,
+                img,
+                (i as u32 * w) as i64,
+                (r as u32 * h) as i64,
+            );
+        }
+    }
+    let path = repo.join("renders/sheet-multiple-scattering.png");
+    sheet.save(&path).unwrap();
     println!("{}", path.display());
 }
