@@ -2,7 +2,9 @@
 //! shows some): an early, a middle and the final frame side by side in
 //! `renders/sheet-<scene>.png`, and the golden-hour backlit frame `renders/duck-golden-hour.png`;
 //! and the README's multiple-scattering sheet, `renders/sheet-multiple-scattering.png` (the
-//! finished duck, golden hour and cumulus-to-duck: the octaves above, the fluence grid below).
+//! finished duck, golden hour and cumulus-to-duck: the octaves above, the fluence grid below)
+//! and the directing sheet, `renders/sheet-directing.png` (a story, a drifting target, a bending
+//! one: a row each, at 160×90).
 //! Scenes whose target is unavailable (bunny and horse need `../shared/models`) are skipped with
 //! a message. Re-run after changing the look or the animation:
 //!
@@ -116,6 +118,44 @@ fn multiple_scattering_sheet() {
         }
     }
     let path = repo.join("renders/sheet-multiple-scattering.png");
+    sheet.save(&path).unwrap();
+    println!("{}", path.display());
+}
+
+/// A row per directing scene (a story of targets, a target that drifts, one that bends): an
+/// early, a middle and the last frame at 160×90, as the scene renders them otherwise.
+#[test]
+#[ignore = "writes renders/sheet-directing.png: see the module doc"]
+fn directing_sheet() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenes = ["cumulus-duck-torus-knot", "duck-drift", "waving-tube"];
+    let (w, h) = (160u32, 90u32);
+    let mut sheet = image::RgbImage::new(3 * w, scenes.len() as u32 * h);
+    for (row, name) in scenes.iter().enumerate() {
+        let mut scene = load_scene(&repo.join(format!("scenes/{name}.ron"))).unwrap();
+        (scene.file.shot.width, scene.file.shot.height) = (w, h);
+        let opts = RenderOptions {
+            output: Some(std::env::temp_dir().join("nephele-sheets-directing")),
+            ..RenderOptions::default()
+        };
+        let shot = Shot::open(scene, &opts).unwrap();
+        let n = shot.total();
+        for (col, f) in [(n / 5).max(1), (n * 11 / 20).max(1), n]
+            .into_iter()
+            .enumerate()
+        {
+            let k = shot.index(f);
+            let s = shot.settings(k).unwrap();
+            let img = output::tonemapped(&shot.render_frame(k).unwrap(), &s);
+            image::imageops::replace(
+                &mut sheet,
+                &img,
+                (col as u32 * w) as i64,
+                (row as u32 * h) as i64,
+            );
+        }
+    }
+    let path = repo.join("renders/sheet-directing.png");
     sheet.save(&path).unwrap();
     println!("{}", path.display());
 }
