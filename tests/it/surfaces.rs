@@ -855,7 +855,8 @@ fn scene_holdouts_and_ground_load_with_located_errors_and_write_their_layers() {
 /// at 640×360 `Final`, against the same frame without, in this binary: the fastest of three
 /// renders each (`NEPHELE_SURFACES_RUNS`), interleaved. Also with `shadows` and the ground's shadow pass, and the frame's
 /// beauty and `shadow` layer written as PNGs to look at (`NEPHELE_SURFACES_OUT`, default a
-/// temporary folder). Run by hand: `cargo test --release --test it holdout_cost -- --ignored
+/// temporary folder; its `sheet-holdout-shadow.png` is the README's picture: copy it into
+/// renders/ when the look changes). Run by hand: `cargo test --release --test it holdout_cost -- --ignored
 /// --nocapture`.
 #[test]
 #[ignore = "a timing, run by hand"]
@@ -1021,6 +1022,28 @@ fn holdout_cost() {
     gray(g.holdout.as_ref().unwrap())
         .save(out.join("holdout.png"))
         .unwrap();
+    // The README's picture (renders/sheet-holdout-shadow.png): the beauty and the `shadow`
+    // layer side by side at half size.
+    {
+        use image::imageops::{FilterType, replace, resize};
+        let (hw, hh) = (g.width / 2, g.height / 2);
+        let beauty = nephele::render::output::tonemapped(&g, &shadowed);
+        let shadow = image::DynamicImage::ImageLuma8(gray(g.shadow.as_ref().unwrap())).to_rgb8();
+        let mut sheet = image::RgbImage::new(2 * hw, hh);
+        replace(
+            &mut sheet,
+            &resize(&beauty, hw, hh, FilterType::Triangle),
+            0,
+            0,
+        );
+        replace(
+            &mut sheet,
+            &resize(&shadow, hw, hh, FilterType::Triangle),
+            hw as i64,
+            0,
+        );
+        sheet.save(out.join("sheet-holdout-shadow.png")).unwrap();
+    }
     // A mock comp to look at: the cloud over a "plate" of brown ground (multiplied by the
     // shadow pass) where the holdout is and a flat sky elsewhere.
     let (hl, sh) = (g.holdout.as_ref().unwrap(), g.shadow.as_ref().unwrap());
