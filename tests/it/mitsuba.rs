@@ -161,6 +161,39 @@ fn write_inputs(
     )
 }
 
+/// nephele's image of the frame `s` (the blobs' own density and light grid; with `exact_sun`,
+/// the sun's depths marched through that grid) into `nephele_ms.f32` or `nephele_ss.f32` in
+/// `dir`, as `s.cloud.multiple_scattering` says. Returns the render's seconds.
+fn render_nephele(
+    s: &RenderSettings,
+    blobs: &[nephele::blobby::Blob],
+    exact_sun: Option<&grid_medium::DenseGrid>,
+    dir: &Path,
+) -> f64 {
+    let start = Instant::now();
+    let m = BlobMedium::new(s, blobs);
+    let lg = LightGrid::for_frame(s, &m.for_light_grid(s));
+    let f = match exact_sun {
+        Some(grid) => {
+            let l = grid_medium::ExactSun {
+                grid,
+                sun_dir: s.sun.travel_dir().into(),
+                base: &lg,
+            };
+            render_medium(s, &m, &l, &Film::default())
+        }
+        None => render_medium(s, &m, &lg, &Film::default()),
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    let name = if s.cloud.multiple_scattering {
+        "nephele_ms.f32"
+    } else {
+        "nephele_ss.f32"
+    };
+    write_f32(&dir.join(name), composite(s, &f));
+    seconds
+}
+
 /// [`write_inputs`] with the frame's settings changed by `adjust` (an `Environment` sky is
 /// passed to Mitsuba as its file, with its rotation and intensity).
 fn write_inputs_with(
@@ -211,13 +244,7 @@ fn write_inputs_with(
     // earlier run): only nephele's full image is rendered again; the grid and the rest are kept.
     if std::env::var("NEPHELE_MITSUBA_MS_ONLY").is_ok() && dir.join("grid.vol").exists() {
         s.cloud.multiple_scattering = true;
-        let start = Instant::now();
-        let m = BlobMedium::new(&s, &blobs);
-        let lg = LightGrid::for_frame(&s, &m.for_light_grid(&s));
-        let f = render_medium(&s, &m, &lg, &Film::default());
-        let t = start.elapsed().as_secs_f64();
-        write_f32(&dir.join("nephele_ms.f32"), composite(&s, &f));
-        return (0.0, t);
+        return (0.0, render_nephele(&s, &blobs, None, dir));
     }
     // The grid the volume export writes (`nephele::export`), sampled through the `Medium`.
     let m = BlobMedium::new(&s, &blobs);
@@ -257,26 +284,9 @@ fn write_inputs_with(
     let dense = grid_medium::DenseGrid::new(&grid);
     for (idx, ms) in [(0, false), (1, true)] {
         s.cloud.multiple_scattering = ms;
-        let start = Instant::now();
-        let m = BlobMedium::new(&s, &blobs);
-        let lg = LightGrid::for_frame(&s, &m.for_light_grid(&s));
-        let f = if !ms && std::env::var("NEPHELE_MITSUBA_EXACT_SUN").is_ok() {
-            let l = grid_medium::ExactSun {
-                grid: &dense,
-                sun_dir: s.sun.travel_dir().into(),
-                base: &lg,
-            };
-            render_medium(&s, &m, &l, &Film::default())
-        } else {
-            render_medium(&s, &m, &lg, &Film::default())
-        };
-        times[idx] = start.elapsed().as_secs_f64();
-        let name = if ms {
-            "nephele_ms.f32"
-        } else {
-            "nephele_ss.f32"
-        };
-        write_f32(&dir.join(name), composite(&s, &f));
+        let exact_sun =
+            (!ms && std::env::var("NEPHELE_MITSUBA_EXACT_SUN").is_ok()).then_some(&dense);
+        times[idx] = render_nephele(&s, &blobs, exact_sun, dir);
     }
     // The light transport alone: nephele's integrator on Mitsuba's very grid, with a light grid
     // of the frame's quality (or, with NEPHELE_MITSUBA_EXACT, depths marched exactly: slow).

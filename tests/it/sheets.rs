@@ -17,11 +17,15 @@ use std::path::Path;
 use nephele::render::output;
 use nephele::scene::{RenderOptions, Shot, load_scene};
 
-/// Frames `frames` (1-based) of `scene`, tone-mapped as the PNG frames are.
-fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::RgbImage>> {
-    let scene = load_scene(scene)
+/// The shot of `scene` (at `size`, or its own), or `None` with a message when its target is
+/// unavailable.
+fn open(scene: &Path, size: Option<(u32, u32)>) -> Option<Shot> {
+    let mut scene = load_scene(scene)
         .map_err(|e| eprintln!("skipping: {e}"))
         .ok()?;
+    if let Some(size) = size {
+        (scene.file.shot.width, scene.file.shot.height) = size;
+    }
     let opts = RenderOptions {
         output: Some(std::env::temp_dir().join("nephele-sheets")),
         ..RenderOptions::default()
@@ -30,16 +34,42 @@ fn frames(scene: &Path, frames: &dyn Fn(u32) -> Vec<u32>) -> Option<Vec<image::R
     shot.prepared()
         .map_err(|e| eprintln!("skipping: {e}"))
         .ok()?;
-    Some(
-        frames(shot.total())
-            .into_iter()
-            .map(|f| {
-                let k = shot.index(f);
-                let s = shot.settings(k).unwrap();
-                output::tonemapped(&shot.render_frame(k).unwrap(), &s)
-            })
-            .collect(),
-    )
+    Some(shot)
+}
+
+/// Frames `frames` (1-based, of the shot's total) of `shot`, tone-mapped as the PNG frames are.
+fn frames(shot: &Shot, frames: &dyn Fn(u32) -> Vec<u32>) -> Vec<image::RgbImage> {
+    frames(shot.total())
+        .into_iter()
+        .map(|f| {
+            let k = shot.index(f);
+            let s = shot.settings(k).unwrap();
+            output::tonemapped(&shot.render_frame(k).unwrap(), &s)
+        })
+        .collect()
+}
+
+/// An early, a middle and the last frame of a shot of `n` frames.
+fn early_middle_last(n: u32) -> Vec<u32> {
+    vec![(n / 5).max(1), (n * 11 / 20).max(1), n]
+}
+
+/// `rows` of equal-sized pictures pasted into one sheet, saved as `renders/<name>`.
+fn save_sheet(name: &str, rows: &[Vec<image::RgbImage>]) {
+    let (w, h) = rows[0][0].dimensions();
+    let cols = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
+    let mut sheet = image::RgbImage::new(w * cols, h * rows.len() as u32);
+    for (r, row) in rows.iter().enumerate() {
+        for (c, img) in row.iter().enumerate() {
+            let (x, y) = (c as u32 * w, r as u32 * h);
+            image::imageops::replace(&mut sheet, img, x as i64, y as i64);
+        }
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("renders")
+        .join(name);
+    sheet.save(&path).unwrap();
+    println!("{}", path.display());
 }
 
 #[test]
@@ -55,26 +85,19 @@ fn sheets() {
         {
             continue;
         }
-        let pick = |n: u32| vec![(n / 5).max(1), (n * 11 / 20).max(1), n];
-        let Some(images) = frames(&builtin_scenes::path(name), &pick) else {
+        let Some(shot) = open(&builtin_scenes::path(name), None) else {
             continue;
         };
-        let (w, h) = images[0].dimensions();
-        let mut sheet = image::RgbImage::new(w * images.len() as u32, h);
-        for (i, img) in images.iter().enumerate() {
-            image::imageops::replace(&mut sheet, img, (i as u32 * w) as i64, 0);
-        }
-        let path = repo.join(format!("renders/sheet-{name}.png"));
-        sheet.save(&path).unwrap();
-        println!("{}", path.display());
+        save_sheet(
+            &format!("sheet-{name}.png"),
+            &[frames(&shot, &early_middle_last)],
+        );
     }
     if only.is_some() {
         return;
     }
-    let golden = frames(&repo.join("scenes/duck-golden-hour.ron"), &|n| vec![n]).unwrap();
-    let path = repo.join("renders/duck-golden-hour.png");
-    golden[0].save(&path).unwrap();
-    println!("{}", path.display());
+    let golden = open(&repo.join("scenes/duck-golden-hour.ron"), None).unwrap();
+    save_sheet("duck-golden-hour.png", &[frames(&golden, &|n| vec![n])]);
 }
 
 /// The last frame of each of `scenes`, rendered twice: with the octaves (`quality.ms_photons`
@@ -84,15 +107,9 @@ fn sheets() {
 #[ignore = "writes renders/sheet-multiple-scattering.png: see the module doc"]
 fn multiple_scattering_sheet() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let scenes = ["duck-diffusion", "duck-golden-hour", "cumulus-to-duck"];
     let mut rows: [Vec<image::RgbImage>; 2] = [Vec::new(), Vec::new()];
-    for name in scenes {
-        let scene = load_scene(&repo.join(format!("scenes/{name}.ron"))).unwrap();
-        let opts = RenderOptions {
-            output: Some(std::env::temp_dir().join("nephele-sheets")),
-            ..RenderOptions::default()
-        };
-        let shot = Shot::open(scene, &opts).unwrap();
+    for name in ["duck-diffusion", "duck-golden-hour", "cumulus-to-duck"] {
+        let shot = open(&repo.join(format!("scenes/{name}.ron")), None).unwrap();
         let k = shot.index(shot.total());
         let blobs = shot.blobs(k).unwrap();
         let settings = shot.settings(k).unwrap();
@@ -105,21 +122,7 @@ fn multiple_scattering_sheet() {
             ));
         }
     }
-    let (w, h) = rows[0][0].dimensions();
-    let mut sheet = image::RgbImage::new(w * scenes.len() as u32, 2 * h);
-    for (r, row) in rows.iter().enumerate() {
-        for (i, img) in row.iter().enumerate() {
-            image::imageops::replace(
-                &mut sheet,
-                img,
-                (i as u32 * w) as i64,
-                (r as u32 * h) as i64,
-            );
-        }
-    }
-    let path = repo.join("renders/sheet-multiple-scattering.png");
-    sheet.save(&path).unwrap();
-    println!("{}", path.display());
+    save_sheet("sheet-multiple-scattering.png", &rows);
 }
 
 /// A row per directing scene (a story of targets, a target that drifts, one that bends): an
@@ -128,34 +131,12 @@ fn multiple_scattering_sheet() {
 #[ignore = "writes renders/sheet-directing.png: see the module doc"]
 fn directing_sheet() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let scenes = ["cumulus-duck-torus-knot", "duck-drift", "waving-tube"];
-    let (w, h) = (160u32, 90u32);
-    let mut sheet = image::RgbImage::new(3 * w, scenes.len() as u32 * h);
-    for (row, name) in scenes.iter().enumerate() {
-        let mut scene = load_scene(&repo.join(format!("scenes/{name}.ron"))).unwrap();
-        (scene.file.shot.width, scene.file.shot.height) = (w, h);
-        let opts = RenderOptions {
-            output: Some(std::env::temp_dir().join("nephele-sheets-directing")),
-            ..RenderOptions::default()
-        };
-        let shot = Shot::open(scene, &opts).unwrap();
-        let n = shot.total();
-        for (col, f) in [(n / 5).max(1), (n * 11 / 20).max(1), n]
-            .into_iter()
-            .enumerate()
-        {
-            let k = shot.index(f);
-            let s = shot.settings(k).unwrap();
-            let img = output::tonemapped(&shot.render_frame(k).unwrap(), &s);
-            image::imageops::replace(
-                &mut sheet,
-                &img,
-                (col as u32 * w) as i64,
-                (row as u32 * h) as i64,
-            );
-        }
-    }
-    let path = repo.join("renders/sheet-directing.png");
-    sheet.save(&path).unwrap();
-    println!("{}", path.display());
+    let rows: Vec<_> = ["cumulus-duck-torus-knot", "duck-drift", "waving-tube"]
+        .iter()
+        .map(|name| {
+            let path = repo.join(format!("scenes/{name}.ron"));
+            frames(&open(&path, Some((160, 90))).unwrap(), &early_middle_last)
+        })
+        .collect();
+    save_sheet("sheet-directing.png", &rows);
 }
