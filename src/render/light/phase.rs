@@ -38,6 +38,21 @@ pub fn cloud_phase(mu: f32, g: f32) -> f32 {
         + BACK_LOBE_WEIGHT * henyey_greenstein(mu, BACK_LOBE_RATIO * g)
 }
 
+/// The share of [`cloud_phase`] (asymmetry `g`) scattered within the cone of directions whose
+/// cosine to the forward direction is at least `mu0`: each lobe's distribution in `μ` in
+/// closed form, `(1 − g²)/(2g) · (1/(1 − g) − 1/√(1 + g² − 2gμ₀))` (`(1 − μ₀)/2` at `g` 0).
+pub(crate) fn cloud_phase_within(mu0: f32, g: f32) -> f32 {
+    let lobe = |g: f32| {
+        if g.abs() < 1e-4 {
+            0.5 * (1.0 - mu0)
+        } else {
+            (1.0 - g * g) / (2.0 * g)
+                * (1.0 / (1.0 - g) - 1.0 / (1.0 + g * g - 2.0 * g * mu0).sqrt())
+        }
+    };
+    (1.0 - BACK_LOBE_WEIGHT) * lobe(g) + BACK_LOBE_WEIGHT * lobe(BACK_LOBE_RATIO * g)
+}
+
 /// The cosine `μ` of a Henyey–Greenstein lobe of asymmetry `g` for a uniform `ξ` (the inverse
 /// of its distribution in `μ`, pbrt's form; exact).
 #[inline]
@@ -104,6 +119,21 @@ mod tests {
             let c = integrate(|mu| cloud_phase(mu, g));
             assert!((c - 1.0).abs() < 1e-3, "cloud g={g}: {c}");
         }
+    }
+
+    #[test]
+    fn the_share_within_a_cone_matches_a_quadrature() {
+        for g in [0.0f32, 0.3, 0.75, 0.9] {
+            for deg in [5.0f32, 20.0, 60.0, 180.0] {
+                let mu0 = deg.to_radians().cos();
+                let q = integrate(|mu| if mu >= mu0 { cloud_phase(mu, g) } else { 0.0 });
+                let c = cloud_phase_within(mu0, g) as f64;
+                assert!((c - q).abs() < 2e-3, "g {g}, {deg}°: {c} against {q}");
+            }
+        }
+        // The shipped cone holds about a third of the cloud's scattering.
+        let c = cloud_phase_within(20f32.to_radians().cos(), 0.75);
+        assert!((0.33..0.35).contains(&c), "{c}");
     }
 
     #[test]
