@@ -237,13 +237,14 @@ impl Shading {
     /// the phase function's share in the cone, `μ_s` the cosine between the sun's direction
     /// and the way to the eye; the sum kept ≥ 0). A backlit rim, which the fluence grid's
     /// cells blur with the empty space beside it, gets its forward light; seen from the side
-    /// (`p(μ_s)` small) it changes little.
+    /// (`p(μ_s)` small) it changes little. Where the grid has no once-scattered light (or
+    /// there is no grid) nothing is added.
     #[inline]
     pub(crate) fn fluence_in(&self, m: &MultipleLight, dir: Vec3A, tau_sun: f32) -> Vec3A {
-        let forward = self.forward_cone
-            * (self.sun_forward * tau_sun * exp_neg(tau_sun) - m.sun_once)
-            * cloud_phase(-dir.dot(self.sun_dir), self.g);
         let once = if m.sun_once > 0.0 {
+            let forward = self.forward_cone
+                * (self.sun_forward * tau_sun * exp_neg(tau_sun) - m.sun_once)
+                * cloud_phase(-dir.dot(self.sun_dir), self.g);
             // Its lobe: the phase function's shape about its flux, the first scattering's
             // asymmetry scaled so the lobe's mean cosine is the flux's `|F₁|/φ₁` (the phase
             // function's own mean cosine is `g (1 − w + w r)`).
@@ -259,7 +260,8 @@ impl Shading {
             };
             self.sun_colour * (m.sun_once * self.twice_scattered(mu, s) + forward).max(0.0)
         } else {
-            self.sun_colour * forward.max(0.0)
+            // No fluence here (or no grid at all): nothing to correct.
+            Vec3A::ZERO
         };
         let phi = luminance(m.fluence);
         if !(phi > 0.0) {
