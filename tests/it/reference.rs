@@ -37,8 +37,8 @@ const LIGHTS: [(&str, Vec3); 3] = [
 /// pixel, the reference's noise excluded; render version 7): side 0.151 / 0.973, behind
 /// 0.133 / 0.949, above 0.102 / 0.995 — the backlit bound tighter, 1.13 ×, so that losing the
 /// forward cone (`Shading::fluence_in`; 0.162 / 0.924 without it) fails. Render version 5
-/// measured 0.161 / 0.954, 0.170 / 0.912, 0.109 / 0.975. The octaves it replaced measured 0.430 / 1.282,
-/// 0.966 / 1.819, 0.506 / 1.321 here. (The march's single scattering reads about 4–5 % above
+/// measured 0.161 / 0.954, 0.170 / 0.912, 0.109 / 0.975; the octaves it replaced 0.430 /
+/// 1.282, 0.966 / 1.819, 0.506 / 1.321. (The march's single scattering reads about 4–5 % above
 /// Reference's order 1 on this cloud; Reference's is right — within 0.2 % of a quadrature,
 /// `reference::quadrature::single_scattering_matches_a_quadrature`, and of Mitsuba with a
 /// correct phase function, docs/MEASUREMENTS.md — so that offset is the march's, part of the

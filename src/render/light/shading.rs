@@ -156,10 +156,12 @@ impl Shading {
             1
         };
         let g = settings.cloud.phase_g.clamp(-0.99, 0.99);
+        let sun_radiance = Vec3A::from(sun.color * sun.intensity * tint);
+        let albedo = settings.cloud.albedo.clamp(0.0, 1.0);
         Shading {
             sun_dir: Vec3A::from(sun.travel_dir()),
-            sun_radiance: Vec3A::from(sun.color * sun.intensity * tint),
-            albedo: settings.cloud.albedo.clamp(0.0, 1.0),
+            sun_radiance,
+            albedo,
             g,
             octaves,
             fluence,
@@ -168,8 +170,7 @@ impl Shading {
                 let l = luminance(c);
                 if l > 0.0 { c / l } else { Vec3A::ZERO }
             },
-            sun_forward: settings.cloud.albedo.clamp(0.0, 1.0)
-                * luminance(Vec3A::from(sun.color * sun.intensity * tint)),
+            sun_forward: albedo * luminance(sun_radiance),
             forward_cone: cloud_phase_within(FORWARD_CONE_DEG.to_radians().cos(), g),
             sky_up: Vec3A::from(dome.upper_mean()),
             sky_down: Vec3A::from(dome.lower_mean()),
