@@ -54,8 +54,8 @@ fn early_middle_last(n: u32) -> Vec<u32> {
     vec![(n / 5).max(1), (n * 11 / 20).max(1), n]
 }
 
-/// `rows` of equal-sized pictures pasted into one sheet, saved as `renders/<name>`.
-fn save_sheet(name: &str, rows: &[Vec<image::RgbImage>]) {
+/// `rows` of equal-sized pictures pasted into one sheet.
+pub(crate) fn sheet(rows: &[Vec<image::RgbImage>]) -> image::RgbImage {
     let (w, h) = rows[0][0].dimensions();
     let cols = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let mut sheet = image::RgbImage::new(w * cols, h * rows.len() as u32);
@@ -65,6 +65,12 @@ fn save_sheet(name: &str, rows: &[Vec<image::RgbImage>]) {
             image::imageops::replace(&mut sheet, img, x as i64, y as i64);
         }
     }
+    sheet
+}
+
+/// [`sheet`] of `rows`, saved as `renders/<name>`.
+fn save_sheet(name: &str, rows: &[Vec<image::RgbImage>]) {
+    let sheet = sheet(rows);
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("renders")
         .join(name);

@@ -1025,24 +1025,14 @@ fn holdout_cost() {
     // The README's picture (renders/sheet-holdout-shadow.png): the beauty and the `shadow`
     // layer side by side at half size.
     {
-        use image::imageops::{FilterType, replace, resize};
-        let (hw, hh) = (g.width / 2, g.height / 2);
+        use image::imageops::{FilterType, resize};
+        let half =
+            |img: &image::RgbImage| resize(img, g.width / 2, g.height / 2, FilterType::Triangle);
         let beauty = nephele::render::output::tonemapped(&g, &shadowed);
         let shadow = image::DynamicImage::ImageLuma8(gray(g.shadow.as_ref().unwrap())).to_rgb8();
-        let mut sheet = image::RgbImage::new(2 * hw, hh);
-        replace(
-            &mut sheet,
-            &resize(&beauty, hw, hh, FilterType::Triangle),
-            0,
-            0,
-        );
-        replace(
-            &mut sheet,
-            &resize(&shadow, hw, hh, FilterType::Triangle),
-            hw as i64,
-            0,
-        );
-        sheet.save(out.join("sheet-holdout-shadow.png")).unwrap();
+        crate::sheets::sheet(&[vec![half(&beauty), half(&shadow)]])
+            .save(out.join("sheet-holdout-shadow.png"))
+            .unwrap();
     }
     // A mock comp to look at: the cloud over a "plate" of brown ground (multiplied by the
     // shadow pass) where the holdout is and a flat sky elsewhere.

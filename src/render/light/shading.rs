@@ -242,11 +242,20 @@ impl Shading {
     /// (`p(μ_s)` small) it changes little. Where the grid has no once-scattered light (or
     /// there is no grid) nothing is added.
     #[inline]
-    pub(crate) fn fluence_in(&self, m: &MultipleLight, dir: Vec3A, tau_sun: f32) -> Vec3A {
+    ///
+    /// `sun_phase` is the ray's phase weight from the sun to the eye, `p(μ_s)`
+    /// ([`RayWeights::sun`]`[0]`, the same for all the ray's samples).
+    pub(crate) fn fluence_in(
+        &self,
+        m: &MultipleLight,
+        dir: Vec3A,
+        tau_sun: f32,
+        sun_phase: f32,
+    ) -> Vec3A {
         let once = if m.sun_once > 0.0 {
             let forward = self.forward_cone
                 * (self.sun_forward * tau_sun * exp_neg(tau_sun) - m.sun_once)
-                * cloud_phase(-dir.dot(self.sun_dir), self.g);
+                * sun_phase;
             // Its lobe: the phase function's shape about its flux, the first scattering's
             // asymmetry scaled so the lobe's mean cosine is the flux's `|F₁|/φ₁` (the phase
             // function's own mean cosine is `g (1 − w + w r)`).

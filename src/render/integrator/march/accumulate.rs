@@ -75,7 +75,12 @@ impl<const PASSES: bool> Accumulator<PASSES> {
         let depths = lights.depths(x);
         let mut light = shading.in_scattered(w, &depths);
         if shading.fluence {
-            light = light.with_multiple(shading.fluence_in(&lights.multiple(x), dir, depths.sun));
+            light = light.with_multiple(shading.fluence_in(
+                &lights.multiple(x),
+                dir,
+                depths.sun,
+                w.sun[0],
+            ));
         }
         let k = absorbed * shading.albedo;
         self.rgb += light.total() * k;
