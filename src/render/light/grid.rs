@@ -119,14 +119,15 @@ impl LightGrid {
         };
         let mut sun = SunGrid::build(medium, sun_dir, shape.h, old_sun)?;
         let sky_shape = sky_depths(&shape, &sun, &mut work, &mut sky);
-        let fluence = fluence.map(|f| match fluence_lattice(lo, hi, &sky_shape, &sun) {
-            Some((shape, sigma)) => FluenceGrid::build(&shape, &sigma, f, casters),
-            None => FluenceGrid::build(&sky_shape, &work.coarse, f, casters),
-        });
         if let Some(c) = casters {
             sun.block(c);
             block_sky(&sky_shape, &work.coarse, c, &mut sky);
         }
+        // After the holdouts' shadows: the cells' mean sun detail sees them as the march does.
+        let fluence = fluence.map(|f| match fluence_lattice(lo, hi, &sky_shape, &sun) {
+            Some((shape, sigma)) => FluenceGrid::build(&shape, &sigma, f, casters, &sun),
+            None => FluenceGrid::build(&sky_shape, &work.coarse, f, casters, &sun),
+        });
         // The sampled extinction served the sky's coarse grid only: not kept through the
         // march (a frame's peak memory), at the price of allocating it again next frame.
         sun.release_extinction();

@@ -56,6 +56,13 @@ pub struct MultipleLight {
     pub sun_once: f32,
     /// Net flux of the sunlight scattered exactly once (luminance).
     pub sun_once_flux: Vec3A,
+    /// The sun's share of `fluence`: the fluence (luminance) of sunlight scattered twice or
+    /// more.
+    pub sun_multiple: f32,
+    /// The mean of the sun's sub-cell detail ([`crate::render::light::fluence::sun_detail`])
+    /// over the fluence grid's cells here, as the grid's values are means over its cells (0:
+    /// no grid, no detail).
+    pub sun_detail: f32,
 }
 
 impl MultipleLight {
@@ -65,6 +72,8 @@ impl MultipleLight {
         flux: Vec3A::ZERO,
         sun_once: 0.0,
         sun_once_flux: Vec3A::ZERO,
+        sun_multiple: 0.0,
+        sun_detail: 0.0,
     };
 }
 

@@ -20,7 +20,7 @@
 use glam::Vec3A;
 
 use crate::render::fast_exp::{exp_neg, exp_neg_all};
-use crate::render::light::fluence::luminance;
+use crate::render::light::fluence::{luminance, sun_detail};
 use crate::render::light::phase::{
     BACK_LOBE_RATIO, BACK_LOBE_WEIGHT, cloud_phase, cloud_phase_within, henyey_greenstein,
 };
@@ -278,6 +278,13 @@ impl Shading {
         if !(phi > 0.0) {
             return once;
         }
+        // The sun's sub-cell detail on the sun's share of the fluence.
+        let fluence = if m.sun_detail > 0.0 {
+            let share = (m.sun_multiple / phi).min(1.0);
+            m.fluence * (1.0 + share * (sun_detail(tau_sun) / m.sun_detail - 1.0))
+        } else {
+            m.fluence
+        };
         let f2 = m.flux.length_squared();
         let (mu, f) = if f2 > 0.0 {
             let len = f2.sqrt();
@@ -285,7 +292,7 @@ impl Shading {
         } else {
             (0.0, 0.0)
         };
-        once + m.fluence * cloud_phase(mu, self.g * f)
+        once + fluence * cloud_phase(mu, self.g * f)
     }
 
     /// Light scattered twice at cosine `mu` to its lobe's axis: the cloud's phase function

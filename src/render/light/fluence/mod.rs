@@ -23,16 +23,19 @@ mod cells;
 mod trace;
 
 use glam::Vec3A;
+use rayon::prelude::*;
 
+use crate::render::fast_exp::exp_neg;
 use crate::render::light::MultipleLight;
 use crate::render::light::sky_dome::SkyDome;
+use crate::render::light::sun_depth::SunGrid;
 use crate::render::medium::lattice::{GridShape, trilinear};
 use crate::render::settings::RenderSettings;
 
 use crate::render::surfaces::Surfaces;
 use cells::Cells;
 pub(crate) use trace::luminance;
-use trace::{Casters, ONCE, PER_CELL, SCALE, SKY_STRATA, Sources, sky_direction};
+use trace::{Casters, ONCE, PER_CELL, SCALE, SKY_STRATA, SUN_MULTIPLE, Sources, sky_direction};
 
 /// Most cells on the fluence grid's longest side: the light grid's coarse (sky) lattice is
 /// coarsened by whole factors until it fits.
@@ -42,9 +45,38 @@ pub(crate) const MAX_FLUENCE_CELLS: usize = 40;
 /// noise).
 pub(crate) const SMOOTHING_PASSES: usize = 1;
 
-/// Values stored a node: the [`PER_CELL`] sums, each times the node's lookup weight
-/// ([`lookup_weights`]), then that weight.
-const STORED: usize = PER_CELL + 1;
+/// Values stored a node: the [`PER_CELL`] sums, then the mean of the sun's sub-cell detail
+/// over the node's cell ([`DETAIL`]), each times the node's lookup weight
+/// ([`lookup_weights`]), then that weight ([`WEIGHT`]).
+const STORED: usize = PER_CELL + 2;
+/// Where a node keeps the mean of [`sun_detail`] over its cell.
+const DETAIL: usize = PER_CELL;
+/// Where a node keeps its lookup weight.
+const WEIGHT: usize = PER_CELL + 1;
+
+/// The floor `ε` of [`sun_detail`].
+pub(crate) const SUN_DETAIL_FLOOR: f32 = 0.05;
+/// The power `p` of [`sun_detail`].
+pub(crate) const SUN_DETAIL_POWER: f32 = 0.3;
+
+/// The sun's sub-cell detail at a point of sun depth `tau_sun`: `(ε + e^{−τ})^p`
+/// ([`SUN_DETAIL_FLOOR`], [`SUN_DETAIL_POWER`]).
+///
+/// Why: the grid's cells (a few mean free paths) hold the fluence's mean over each cell, but
+/// sunlight scattered twice or more is brighter than that mean where the cell is sunlit (the
+/// bulges facing the sun, thin parts) and darker where another part of the cloud shades it
+/// (the creases a head or a ridge shadows): it follows the sun's transmittance, loosely (the
+/// orders ≥ 2 have spread over a few mean free paths). The march knows the transmittance at
+/// the light grid's resolution, finer than the cells; so the sun's part of the fluence is
+/// multiplied by this detail at the point over its mean over the cell
+/// ([`crate::render::light::shading::Shading::fluence_in`]). `ε` and `p` say how loosely:
+/// measured against Mitsuba's full transport on the README's three shots and against the
+/// path-traced reference on a cloud none of it was fitted on (docs/MEASUREMENTS.md, "The
+/// sun's detail in the cells").
+#[inline]
+pub(crate) fn sun_detail(tau_sun: f32) -> f32 {
+    (SUN_DETAIL_FLOOR + exp_neg(tau_sun)).powf(SUN_DETAIL_POWER)
+}
 
 /// What a frame's fluence grid is made of besides the medium.
 #[derive(Clone, Debug)]
@@ -108,13 +140,15 @@ impl FluenceGrid {
     /// The fluence grid of the medium whose extinction `sigma` is given on the nodes of
     /// `shape` (the light grid's coarse lattice), lit as `s` says.
     /// Photons whose first collision a shadow-casting holdout of `casters` hides from the
-    /// light are dropped.
+    /// light are dropped. `sun` gives the sun's depths for each cell's mean [`sun_detail`].
     pub(crate) fn build(
         shape: &GridShape,
         sigma: &[f32],
         s: &FluenceSettings,
         casters: Option<&Surfaces>,
+        sun: &SunGrid,
     ) -> FluenceGrid {
+        let detail = coarsen(shape, &detail_at_nodes(shape, sun), MAX_FLUENCE_CELLS).1;
         let (shape, sigma) = coarsen(shape, sigma, MAX_FLUENCE_CELLS);
         let cells = Cells::new(&shape, &sigma);
         let d = cells.dims;
@@ -138,15 +172,17 @@ impl FluenceGrid {
         let k = unit / SCALE;
         let weights = lookup_weights(&sigma);
         let mut values = vec![0.0f32; shape.len() * STORED];
-        for ((out, sum), &w) in values
+        for (((out, sum), &w), &d) in values
             .chunks_exact_mut(STORED)
             .zip(sums.chunks_exact(PER_CELL))
             .zip(&weights)
+            .zip(&detail)
         {
             for (o, &v) in out.iter_mut().zip(sum) {
                 *o = v as f32 * k * w;
             }
-            out[PER_CELL] = w;
+            out[DETAIL] = d * w;
+            out[WEIGHT] = w;
         }
         for _ in 0..SMOOTHING_PASSES {
             smooth(&shape, &mut values);
@@ -168,8 +204,8 @@ impl FluenceGrid {
         let mut v = [0.0f32; STORED];
         trilinear::<STORED, f32>(&self.shape, self.inv_h, &self.values, x, &mut v);
         // The weights are at least 1: no division by zero.
-        let k = 1.0 / v[PER_CELL];
-        for a in &mut v[..PER_CELL] {
+        let k = 1.0 / v[WEIGHT];
+        for a in &mut v[..WEIGHT] {
             *a *= k;
         }
         MultipleLight {
@@ -177,6 +213,8 @@ impl FluenceGrid {
             flux: Vec3A::new(v[3], v[4], v[5]),
             sun_once: v[ONCE],
             sun_once_flux: Vec3A::new(v[ONCE + 1], v[ONCE + 2], v[ONCE + 3]),
+            sun_multiple: v[SUN_MULTIPLE],
+            sun_detail: v[DETAIL],
         }
     }
 }
@@ -196,6 +234,22 @@ fn lookup_weights(sigma: &[f32]) -> Vec<f32> {
     let max = sigma.iter().fold(0.0f32, |a, &b| a.max(b));
     let inv = if max > 0.0 { 1.0 / max } else { 0.0 };
     sigma.iter().map(|&s| 1.0 + s.max(0.0) * inv).collect()
+}
+
+/// [`sun_detail`] at each node of `shape` (world positions), from the sun's depths.
+fn detail_at_nodes(shape: &GridShape, sun: &SunGrid) -> Vec<f32> {
+    let [nx, ny, _] = shape.dims;
+    let mut out = vec![0.0f32; shape.len()];
+    out.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(k, slab)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    slab[i + nx * j] = sun_detail(sun.lookup(shape.node(i, j, k)));
+                }
+            }
+        });
+    out
 }
 
 /// `shape` and its node values `sigma` coarsened by the smallest whole factor that brings the
@@ -274,7 +328,7 @@ fn smooth(shape: &GridShape, values: &mut [f32]) {
 fn contrast(sigma: &[f32], values: &mut [f32], c: f32) {
     // The stored values are weighted: divide by the node's weight (the last value).
     let lum =
-        |v: &[f32]| (luminance(Vec3A::new(v[0], v[1], v[2])) + v[ONCE]) / v[PER_CELL].max(1e-30);
+        |v: &[f32]| (luminance(Vec3A::new(v[0], v[1], v[2])) + v[ONCE]) / v[WEIGHT].max(1e-30);
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for (s, v) in sigma.iter().zip(values.chunks(STORED)) {
         num += (*s * lum(v)) as f64;

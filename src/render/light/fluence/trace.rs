@@ -9,7 +9,8 @@
 //! cloud's phase function (sampled exactly, both lobes) with its weight × the albedo at each
 //! collision, ending by Russian roulette or when it leaves the box. Each flight after a
 //! collision adds `weight × length` to the cells it crosses (φ, RGB) and `luminance × length ×
-//! direction` (F), except a sun photon's first flight after its first collision, which adds its
+//! direction` (F) — a sun photon's luminance × length also to a value of its own, the sun's
+//! share —, except a sun photon's first flight after its first collision, which adds its
 //! luminance × length and luminance × length × direction to values of their own: sunlight
 //! scattered once keeps the phase function's two-lobe shape, which one lobe about the mean
 //! flux of all orders would blur, and its own flux says how far it still follows the sun.
@@ -35,11 +36,17 @@ use crate::rng::{Stream, item_rng};
 
 /// Values summed per cell: φ (R, G, B) and F (x, y, z) of the light scattered at least once
 /// (but sunlight scattered exactly once), then from [`ONCE`] the fluence and the flux (x, y, z)
-/// of sunlight scattered exactly once (luminance).
-pub(crate) const PER_CELL: usize = 10;
+/// of sunlight scattered exactly once (luminance), then at [`SUN_MULTIPLE`] the sun's share
+/// of the first φ (luminance).
+pub(crate) const PER_CELL: usize = 11;
 
 /// Where the once-scattered sunlight's values start in a cell's [`PER_CELL`].
 pub(crate) const ONCE: usize = 6;
+
+/// Where a cell's [`PER_CELL`] keeps the fluence (luminance) of sunlight scattered twice or
+/// more: the part of φ that the sun's sub-cell detail modulates
+/// ([`crate::render::light::fluence::sun_detail`]).
+pub(crate) const SUN_MULTIPLE: usize = 10;
 
 /// Fixed-point scale of the sums: a deposit of `weight × length` (weights relative to the
 /// largest photon weight, lengths in cells) is stored as that × 2²⁴, truncated. A cell's sum
@@ -337,7 +344,7 @@ fn path(
         let flux = d * wl;
         let next = if sun && n == 0 {
             flight(cells, pos, d, tau, |c: usize, l: f32| {
-                let a = &mut acc[c * PER_CELL + ONCE..(c + 1) * PER_CELL];
+                let a = &mut acc[c * PER_CELL + ONCE..c * PER_CELL + ONCE + 4];
                 a[0] += (wl * l) as i64;
                 a[1] += (flux.x * l) as i64;
                 a[2] += (flux.y * l) as i64;
@@ -345,6 +352,9 @@ fn path(
             })
         } else {
             flight(cells, pos, d, tau, |c: usize, l: f32| {
+                if sun {
+                    acc[c * PER_CELL + SUN_MULTIPLE] += (wl * l) as i64;
+                }
                 let a = &mut acc[c * PER_CELL..c * PER_CELL + ONCE];
                 a[0] += (wr.x * l) as i64;
                 a[1] += (wr.y * l) as i64;
