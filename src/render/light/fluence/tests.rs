@@ -190,3 +190,56 @@ fn coarsening_keeps_the_mean_and_fits() {
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     assert!((mean(&v) - mean(&sigma)).abs() < 0.1);
 }
+
+/// The sun's share of the orders ≥ 2 is all of them when the sky is black, none of them when
+/// the sun is; the cells' mean sun detail is the detail's mean over the cell: between the
+/// sunlit top and the shaded bottom of a ball it falls as the exact detail does, and at each
+/// point it lies within the detail's range over the cell around it.
+#[test]
+fn the_suns_share_and_its_detail_are_kept_per_cell() {
+    let sun_dir = Vec3A::NEG_Y;
+    let sigma = 6.0;
+    let s = sun_only(sun_dir, 0.95, 1 << 15);
+    let f = fluence_of(&ball(sigma), &s, 48);
+    for y in [-0.6f32, -0.2, 0.2, 0.6] {
+        let m = f.lookup(Vec3A::new(0.1, y, 0.0));
+        let phi = luminance(m.fluence);
+        assert!(phi > 0.0);
+        assert!(
+            (m.sun_multiple / phi - 1.0).abs() < 1e-3,
+            "y {y}: the sun's share {} of {phi}",
+            m.sun_multiple
+        );
+    }
+    let mut sky = sun_only(sun_dir, 0.95, 1 << 15);
+    sky.sun = Vec3A::ZERO;
+    sky.sky = vec![Vec3A::ONE; SKY_STRATA];
+    let g = fluence_of(&ball(sigma), &sky, 48);
+    let m = g.lookup(Vec3A::ZERO);
+    assert!(luminance(m.fluence) > 0.0 && m.sun_multiple == 0.0);
+
+    // The exact detail at `x`: the sun's depth is σ times the chord up to the surface.
+    let exact = |x: Vec3A| sun_detail(sigma * to_surface(x, -sun_dir).max(0.0));
+    // A cell (the ball's box, padded, over at most 40 cells); the mean reaches about 2.5
+    // cells (its block, the smoothing, the interpolation).
+    let cell = 2.6 / MAX_FLUENCE_CELLS as f32;
+    let mut previous = f32::INFINITY;
+    for y in [0.8f32, 0.5, 0.2, -0.1, -0.4, -0.7] {
+        let x = Vec3A::new(0.05, y, 0.0);
+        let mean = f.lookup(x).sun_detail;
+        assert!(
+            mean < previous,
+            "y {y}: the mean detail {mean} does not fall"
+        );
+        previous = mean;
+        let (lo, hi) = (
+            exact(x + Vec3A::new(0.0, -3.0 * cell, 0.0)),
+            exact(x + Vec3A::new(0.0, 3.0 * cell, 0.0)),
+        );
+        assert!(
+            mean > lo * 0.97 && mean < hi * 1.03,
+            "y {y}: mean detail {mean} outside [{lo}, {hi}] (exact here {})",
+            exact(x)
+        );
+    }
+}
