@@ -241,10 +241,15 @@ impl Shading {
     /// cells blur with the empty space beside it, gets its forward light; seen from the side
     /// (`p(μ_s)` small) it changes little. Where the grid has no once-scattered light (or
     /// there is no grid) nothing is added.
-    #[inline]
+    ///
+    /// The sun's detail: the sun's share of the orders ≥ 3 (`m.sun_multiple`, in the sun's
+    /// colour) is multiplied by [`sun_detail`] at the point's sun depth over its mean over the
+    /// grid's cell (`m.sun_detail`): creases that another part of the cloud shades darken,
+    /// sunlit bulges brighten, below the grid's resolution.
     ///
     /// `sun_phase` is the ray's phase weight from the sun to the eye, `p(μ_s)`
     /// ([`RayWeights::sun`]`[0]`, the same for all the ray's samples).
+    #[inline]
     pub(crate) fn fluence_in(
         &self,
         m: &MultipleLight,
@@ -278,10 +283,11 @@ impl Shading {
         if !(phi > 0.0) {
             return once;
         }
-        // The sun's sub-cell detail on the sun's share of the fluence.
+        // The sun's sub-cell detail on the sun's share of the fluence (in the sun's colour;
+        // the sky's share is left as it is), kept ≥ 0.
         let fluence = if m.sun_detail > 0.0 {
-            let share = (m.sun_multiple / phi).min(1.0);
-            m.fluence * (1.0 + share * (sun_detail(tau_sun) / m.sun_detail - 1.0))
+            let change = m.sun_multiple.min(phi) * (sun_detail(tau_sun) / m.sun_detail - 1.0);
+            (m.fluence + self.sun_colour * change).max(Vec3A::ZERO)
         } else {
             m.fluence
         };
