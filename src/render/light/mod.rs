@@ -62,7 +62,7 @@ pub struct MultipleLight {
     /// The mean of the sun's sub-cell detail ([`crate::render::light::fluence::sun_detail`])
     /// over the fluence grid's cells here, as the grid's values are means over its cells (0:
     /// no grid, no detail).
-    pub sun_detail: f32,
+    pub sun_detail_mean: f32,
 }
 
 impl MultipleLight {
@@ -73,7 +73,7 @@ impl MultipleLight {
         sun_once: 0.0,
         sun_once_flux: Vec3A::ZERO,
         sun_multiple: 0.0,
-        sun_detail: 0.0,
+        sun_detail_mean: 0.0,
     };
 }
 

@@ -244,7 +244,7 @@ impl Shading {
     ///
     /// The sun's detail: the sun's share of the orders ≥ 3 (`m.sun_multiple`, in the sun's
     /// colour) is multiplied by [`sun_detail`] at the point's sun depth over its mean over the
-    /// grid's cell (`m.sun_detail`): creases that another part of the cloud shades darken,
+    /// grid's cell (`m.sun_detail_mean`): creases that another part of the cloud shades darken,
     /// sunlit bulges brighten, below the grid's resolution.
     ///
     /// `sun_phase` is the ray's phase weight from the sun to the eye, `p(μ_s)`
@@ -257,10 +257,11 @@ impl Shading {
         tau_sun: f32,
         sun_phase: f32,
     ) -> Vec3A {
+        // The sun's transmittance here, for the forward cone and the sun's detail.
+        let t_sun = exp_neg(tau_sun);
         let once = if m.sun_once > 0.0 {
-            let forward = self.forward_cone
-                * (self.sun_forward * tau_sun * exp_neg(tau_sun) - m.sun_once)
-                * sun_phase;
+            let forward =
+                self.forward_cone * (self.sun_forward * tau_sun * t_sun - m.sun_once) * sun_phase;
             // Its lobe: the phase function's shape about its flux, the first scattering's
             // asymmetry scaled so the lobe's mean cosine is the flux's `|F₁|/φ₁` (the phase
             // function's own mean cosine is `g (1 − w + w r)`).
@@ -285,8 +286,8 @@ impl Shading {
         }
         // The sun's sub-cell detail on the sun's share of the fluence (in the sun's colour;
         // the sky's share is left as it is), kept ≥ 0.
-        let fluence = if m.sun_detail > 0.0 {
-            let change = m.sun_multiple.min(phi) * (sun_detail(tau_sun) / m.sun_detail - 1.0);
+        let fluence = if m.sun_detail_mean > 0.0 {
+            let change = m.sun_multiple.min(phi) * (sun_detail(t_sun) / m.sun_detail_mean - 1.0);
             (m.fluence + self.sun_colour * change).max(Vec3A::ZERO)
         } else {
             m.fluence

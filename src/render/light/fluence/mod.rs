@@ -59,8 +59,8 @@ pub(crate) const SUN_DETAIL_FLOOR: f32 = 0.05;
 /// The power `p` of [`sun_detail`].
 pub(crate) const SUN_DETAIL_POWER: f32 = 0.3;
 
-/// The sun's sub-cell detail at a point of sun depth `tau_sun`: `(ε + e^{−τ})^p`
-/// ([`SUN_DETAIL_FLOOR`], [`SUN_DETAIL_POWER`]).
+/// The sun's sub-cell detail at a point whose sun transmittance is `t_sun = e^{−τ}`:
+/// `(ε + e^{−τ})^p` ([`SUN_DETAIL_FLOOR`], [`SUN_DETAIL_POWER`]).
 ///
 /// Why: the grid's cells (a few mean free paths) hold the fluence's mean over each cell, but
 /// sunlight scattered twice or more is brighter than that mean where the cell is sunlit (the
@@ -74,8 +74,8 @@ pub(crate) const SUN_DETAIL_POWER: f32 = 0.3;
 /// path-traced reference on a cloud none of it was fitted on (docs/MEASUREMENTS.md, "The
 /// sun's detail in the cells").
 #[inline]
-pub(crate) fn sun_detail(tau_sun: f32) -> f32 {
-    (SUN_DETAIL_FLOOR + exp_neg(tau_sun)).powf(SUN_DETAIL_POWER)
+pub(crate) fn sun_detail(t_sun: f32) -> f32 {
+    (SUN_DETAIL_FLOOR + t_sun).powf(SUN_DETAIL_POWER)
 }
 
 /// What a frame's fluence grid is made of besides the medium.
@@ -214,7 +214,7 @@ impl FluenceGrid {
             sun_once: v[ONCE],
             sun_once_flux: Vec3A::new(v[ONCE + 1], v[ONCE + 2], v[ONCE + 3]),
             sun_multiple: v[SUN_MULTIPLE],
-            sun_detail: v[DETAIL],
+            sun_detail_mean: v[DETAIL],
         }
     }
 }
@@ -245,7 +245,7 @@ fn detail_at_nodes(shape: &GridShape, sun: &SunGrid) -> Vec<f32> {
         .for_each(|(k, slab)| {
             for j in 0..ny {
                 for i in 0..nx {
-                    slab[i + nx * j] = sun_detail(sun.lookup(shape.node(i, j, k)));
+                    slab[i + nx * j] = sun_detail(exp_neg(sun.lookup(shape.node(i, j, k))));
                 }
             }
         });

@@ -219,14 +219,14 @@ fn the_suns_share_and_its_detail_are_kept_per_cell() {
     assert!(luminance(m.fluence) > 0.0 && m.sun_multiple == 0.0);
 
     // The exact detail at `x`: the sun's depth is σ times the chord up to the surface.
-    let exact = |x: Vec3A| sun_detail(sigma * to_surface(x, -sun_dir).max(0.0));
+    let exact = |x: Vec3A| sun_detail(exp_neg(sigma * to_surface(x, -sun_dir).max(0.0)));
     // A cell (the ball's box, padded, over at most 40 cells); the mean reaches about 2.5
     // cells (its block, the smoothing, the interpolation).
     let cell = 2.6 / MAX_FLUENCE_CELLS as f32;
     let mut previous = f32::INFINITY;
     for y in [0.8f32, 0.5, 0.2, -0.1, -0.4, -0.7] {
         let x = Vec3A::new(0.05, y, 0.0);
-        let mean = f.lookup(x).sun_detail;
+        let mean = f.lookup(x).sun_detail_mean;
         assert!(
             mean < previous,
             "y {y}: the mean detail {mean} does not fall"
